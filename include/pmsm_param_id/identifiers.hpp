@@ -1,0 +1,71 @@
+// The five methods behind OnlineIdentifier.
+#pragma once
+#include <Eigen/Core>
+#include <memory>
+
+#include "pmsm_param_id/online_identifier.hpp"
+#include "pmsm_param_id/particle_swarm.hpp"
+
+namespace pmsm_param_id {
+
+/// PSO, SAPSO or FBDAPSO on the horizon fitness: iterations_per_sample swarm iterations per
+/// sample once the first block exists (the paper's "identify every sampling point").
+class SwarmIdentifier : public OnlineIdentifier {
+ public:
+  explicit SwarmIdentifier(const IdentifierConfig& config);
+  std::string method() const override { return swarm_->policy().name(); }
+  const ParticleSwarm& swarm() const { return *swarm_; }
+
+ protected:
+  void update(const Sample& s, bool new_block, bool continuity_broken) override;
+  ParameterVector current() const override;
+  void restart() override;
+  std::uint64_t iterations() const override { return swarm_->iterations(); }
+  double temperature() const override { return swarm_->temperature(); }
+
+ private:
+  std::unique_ptr<ParticleSwarm> swarm_;
+};
+
+/// Extended Kalman filter on x = {i_d, i_q, R_s, L_d, L_q, psi_f}: the paper's forward-Euler
+/// model (Eq. 11) as process, the measured currents as measurement, random-walk parameters.
+class EkfIdentifier : public OnlineIdentifier {
+ public:
+  explicit EkfIdentifier(const IdentifierConfig& config);
+  std::string method() const override { return "ekf"; }
+
+ protected:
+  void update(const Sample& s, bool new_block, bool continuity_broken) override;
+  ParameterVector current() const override;
+  void restart() override;
+
+ private:
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  using Mat6 = Eigen::Matrix<double, 6, 6>;
+  Vec6 x_;
+  Mat6 P_;
+  Sample previous_;
+  bool have_previous_ = false;
+};
+
+/// Recursive least squares with exponential forgetting on the integrated voltage equations,
+/// which are linear in the parameters:
+///   U_d = R_s I_d + L_d Di_d - L_q W_d,   U_q = R_s I_q + L_q Di_q + L_d W_q + psi_f Om.
+class RlsIdentifier : public OnlineIdentifier {
+ public:
+  explicit RlsIdentifier(const IdentifierConfig& config);
+  std::string method() const override { return "rls"; }
+
+ protected:
+  void update(const Sample& s, bool new_block, bool continuity_broken) override;
+  ParameterVector current() const override;
+  void restart() override;
+
+ private:
+  Eigen::Vector4d theta_;
+  Eigen::Matrix4d P_;
+  double last_t_ = 0.0;
+  bool have_last_ = false;
+};
+
+}  // namespace pmsm_param_id

@@ -1,0 +1,83 @@
+#include "pmsm_param_id/particle_swarm.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace pmsm_param_id {
+
+bool MetropolisAcceptance::accept(double delta, double r, ParticleTemperature& th) const {
+  if (delta <= 0.0) return true;  // Eq. (16)
+  return std::exp(-delta / th.T) > r;
+}
+
+bool BackfireDoubleAnnealing::accept(double delta, double r, ParticleTemperature& th) const {
+  if (delta < 0.0) {  // better: accepted, general annealing (Eq. 7)
+    th.T *= C1_;
+    return true;
+  }
+  const double d = delta == 0.0 ? zero_delta_ : delta;  // Eq. (17)
+  if (std::exp(-d / th.T) > r) {
+    ++th.accepted_worse;  // tempering (Eq. 8), then general annealing (step 9)
+    th.T = C1_ * (th.T + std::pow(C2_, th.accepted_worse) * T2_);
+    return true;
+  }
+  return false;
+}
+
+ParticleSwarm::ParticleSwarm(const SwarmSettings& settings, std::shared_ptr<const AcceptancePolicy> policy,
+                             const ParameterVector& lower, const ParameterVector& upper, std::uint64_t seed,
+                             const ParameterVector* initial_guess)
+    : s_(settings), policy_(std::move(policy)), lower_(lower), rng_(seed) {
+  if (s_.particles < 2) throw std::invalid_argument("swarm needs at least 2 particles");
+  for (int d = 0; d < kParameterCount; ++d) {
+    if (!(upper[d] > lower[d])) throw std::invalid_argument("swarm bounds: lower must be < upper");
+    span_[d] = upper[d] - lower[d];
+  }
+  swarm_.resize(static_cast<std::size_t>(s_.particles));
+  for (Particle& p : swarm_) {
+    for (int d = 0; d < kParameterCount; ++d) {
+      p.x[d] = rng_.uniform();
+      p.v[d] = (2.0 * rng_.uniform() - 1.0) * s_.v_max;
+    }
+    p.pbest = p.x;
+    policy_->reset(p.th);
+  }
+  if (initial_guess) {  // particle 0 starts at the shared initial values
+    for (int d = 0; d < kParameterCount; ++d)
+      swarm_[0].x[d] = std::min(1.0, std::max(0.0, ((*initial_guess)[d] - lower_[d]) / span_[d]));
+    swarm_[0].pbest = swarm_[0].x;
+  }
+  gbest_ = swarm_[0].x;
+}
+
+void ParticleSwarm::evaluateAll(const Fitness& f) {
+  f_gbest_ = std::numeric_limits<double>::infinity();
+  for (Particle& p : swarm_) {
+    p.f = f(toParameters(p.x));
+    p.f_pbest = f(toParameters(p.pbest));
+    evaluations_ += 2;
+    if (p.f < p.f_pbest) {
+      p.f_pbest = p.f;
+      p.pbest = p.x;
+    }
+    if (p.f_pbest < f_gbest_) {
+      f_gbest_ = p.f_pbest;
+      gbest_ = p.pbest;
+    }
+  }
+  evaluated_ = true;
+}
+
+void ParticleSwarm::restartCycle(const Fitness& f) {
+  evaluateAll(f);
+  for (Particle& p : swarm_) policy_->reset(p.th);
+}
+
+double ParticleSwarm::temperature() const {
+  if (!policy_->hasTemperature()) return std::numeric_limits<double>::quiet_NaN();
+  double sum = 0.0;
+  for (const Particle& p : swarm_) sum += p.th.T;
+  return sum / static_cast<double>(swarm_.size());
+}
+
+}  // namespace pmsm_param_id
