@@ -27,6 +27,8 @@ void validate(const IdentifierConfig& c, const std::string& source) {
   if (c.swarm.particles < 2) fail("swarm.particles", "population must be >= 2");
   if (c.swarm.reset_iterations < 1) fail("swarm.reset_iterations", "must be >= 1");
   if (!(c.swarm.v_max > 0 && c.swarm.v_max <= 1)) fail("swarm.v_max", "must be in (0, 1]");
+  if (!(c.swarm.restart_velocity >= 0 && c.swarm.restart_velocity <= c.swarm.v_max))
+    fail("swarm.restart_velocity", "must be in [0, v_max]");
   if (!(c.swarm.w_min >= 0 && c.swarm.w_min <= c.swarm.w_max)) fail("swarm.w_min", "must be in [0, w_max]");
   if (!(c.sapso_C1 > 0 && c.sapso_C1 < 1)) fail("sapso.C1", "must be in (0, 1)");
   if (!(c.fbdapso_C1 > 0 && c.fbdapso_C1 < 1)) fail("fbdapso.C1", "must be in (0, 1)");
@@ -66,6 +68,7 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   c.swarm.w_min = y.number("swarm.w_min", c.swarm.w_min);
   c.swarm.reset_iterations = static_cast<int>(y.integer("swarm.reset_iterations", c.swarm.reset_iterations));
   c.swarm.v_max = y.number("swarm.v_max", c.swarm.v_max);
+  c.swarm.restart_velocity = y.number("swarm.restart_velocity", c.swarm.restart_velocity);
   c.iterations_per_sample = static_cast<int>(y.integer("swarm.iterations_per_sample", c.iterations_per_sample));
   c.sapso_T1 = y.number("sapso.T1", c.sapso_T1);
   c.sapso_C1 = y.number("sapso.C1", c.sapso_C1);

@@ -69,8 +69,15 @@ void ParticleSwarm::evaluateAll(const Fitness& f) {
 }
 
 void ParticleSwarm::restartCycle(const Fitness& f) {
+  // A new cycle starts like the algorithm itself: inertia w_max (via k_ = 0), temperature T1 and
+  // velocities drawn at random, warm-started from the current positions and bests. Without the
+  // fresh velocities a swarm that has collapsed (x = pbest = gbest, v ~ 0) can never move again,
+  // even when new data show that its point is wrong (doc/algorithm.md).
   evaluateAll(f);
-  for (Particle& p : swarm_) policy_->reset(p.th);
+  for (Particle& p : swarm_) {
+    policy_->reset(p.th);
+    for (int d = 0; d < kParameterCount; ++d) p.v[d] = (2.0 * rng_.uniform() - 1.0) * s_.restart_velocity;
+  }
 }
 
 double ParticleSwarm::temperature() const {

@@ -24,6 +24,12 @@ YAML::Node YamlReader::find(const std::string& dotted_key) const {
   std::stringstream ss(dotted_key);
   std::string part;
   while (std::getline(ss, part, '.')) {
+    if (node.IsSequence() && !part.empty() && part.find_first_not_of("0123456789") == std::string::npos) {
+      const std::size_t i = std::stoul(part);
+      if (i >= node.size()) return YAML::Node(YAML::NodeType::Undefined);
+      node = node[i];
+      continue;
+    }
     if (!node.IsMap()) return YAML::Node(YAML::NodeType::Undefined);
     node = node[part];
     if (!node.IsDefined()) return node;

@@ -144,7 +144,7 @@ std::map<std::string, PaperRow> readPaperTable(const std::string& path, const st
     std::stringstream ss(line);
     std::string cell;
     while (std::getline(ss, cell, ',')) c.push_back(cell);
-    if (c.size() < 12 || c[0] != condition) continue;
+    if (c.size() < 11 || c[0] != condition) continue;  // an empty trailing fitness cell is not split off
     PaperRow r;
     for (int p = 0; p < kParameterCount; ++p) {
       r.value[p] = std::stod(c[2 + 2 * p]);
@@ -254,7 +254,7 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
       std::snprintf(buf, sizeof buf, "%+.3f [%.3f]", median(e), worst);
       std::printf("%-24s", buf);
     }
-    std::printf("\n%-22s", "  identifiable (seeds)");
+    std::printf("\n%-22s", "  identifiable");
     for (std::size_t m = 0; m < methods.size(); ++m) {
       int n = 0;
       for (const auto& r : results[m]) n += r.final.identifiable[p];

@@ -1,0 +1,132 @@
+// bag_tool csv2bag CSV BAG   : a drive log (t,u_d,u_q,i_d,i_q,omega_e[,R_s,L_d,L_q,psi_f]) as a bag
+//                              that replay.launch plays (/drive/samples_batch, /drive/true_parameters).
+// bag_tool bag2csv BAG CSV   : the samples of a bag as a drive log, with the identifier node's time
+//                              base (seconds since the first stamp), so ./run identify sees exactly
+//                              what the node saw.
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+
+#include "pmsm_param_id/config_error.hpp"
+#include "pmsm_param_id/sample_csv.hpp"
+#include "ros_bridge.hpp"
+
+using namespace pmsm_param_id;
+
+namespace {
+const char* kBatchTopic = "/drive/samples_batch";
+const char* kTruthTopic = "/drive/true_parameters";
+const ros::Time kOrigin(1000.0);  // stamp of t = 0 in bags made from CSV logs
+
+int csv2bag(const std::string& csv, const std::string& bag_path, std::size_t batch) {
+  const SampleLog log = readSampleCsv(csv);
+  if (log.samples.size() < 2) throw InputError(csv + ": fewer than 2 samples");
+  std::vector<double> dts;
+  for (std::size_t k = 1; k < log.samples.size(); ++k) {
+    const double dt = log.samples[k].t - log.samples[k - 1].t;
+    if (std::isfinite(dt) && dt > 0) dts.push_back(dt);
+  }
+  if (dts.empty()) throw InputError(csv + ": time never increases");
+  std::nth_element(dts.begin(), dts.begin() + static_cast<long>(dts.size() / 2), dts.end());
+  const double Ts = dts[dts.size() / 2];
+  rosbag::Bag bag(bag_path + ".tmp", rosbag::bagmode::Write);
+  DriveSampleBatch msg;
+  std::size_t written = 0, skipped = 0, messages = 0;
+  double first_t = 0;
+  ParameterVector truth{};
+  auto flush = [&]() {
+    if (msg.u_d.empty()) return;
+    bag.write(kBatchTopic, msg.header.stamp, msg);
+    if (log.has_truth) bag.write(kTruthTopic, msg.header.stamp, toMessage(truth, msg.header.stamp));
+    written += msg.u_d.size();
+    ++messages;
+    msg = DriveSampleBatch();
+  };
+  for (std::size_t k = 0; k < log.samples.size(); ++k) {
+    const Sample& s = log.samples[k];
+    if (!std::isfinite(s.t) || s.t < 0) {
+      std::fprintf(stderr, "%s:%zu: time '%g' cannot be stamped: row skipped\n", csv.c_str(), log.line_numbers[k], s.t);
+      ++skipped;
+      continue;
+    }
+    const std::size_t n = msg.u_d.size();
+    const bool on_grid = n > 0 && std::abs(s.t - (first_t + static_cast<double>(n) * Ts)) <= 1e-6 * Ts;
+    if (n >= batch || (n > 0 && !on_grid)) flush();
+    if (msg.u_d.empty()) {
+      first_t = s.t;
+      msg.header.stamp = kOrigin + ros::Duration(s.t);
+      msg.sample_period = Ts;
+      msg.first_index = k;
+      if (log.has_truth) truth = log.truth[k];
+    }
+    msg.u_d.push_back(s.u_d);
+    msg.u_q.push_back(s.u_q);
+    msg.i_d.push_back(s.i_d);
+    msg.i_q.push_back(s.i_q);
+    msg.omega_e.push_back(s.omega_e);
+  }
+  flush();
+  bag.close();
+  if (std::rename((bag_path + ".tmp").c_str(), bag_path.c_str()) != 0) throw std::runtime_error(bag_path + ": cannot write");
+  std::printf("wrote %zu samples in %zu messages (T_s = %.6g s) to %s%s\n", written, messages, Ts, bag_path.c_str(),
+              skipped ? " (some rows skipped, see above)" : "");
+  return 0;
+}
+
+int bag2csv(const std::string& bag_path, const std::string& csv, const std::string& topic) {
+  rosbag::Bag bag;
+  try {
+    bag.open(bag_path, rosbag::bagmode::Read);
+  } catch (const rosbag::BagException& e) {
+    throw InputError(bag_path + ": not a readable bag (" + e.what() + ")");
+  }
+  std::map<ros::Time, ParameterVector> truth;
+  for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery(kTruthTopic)))
+    if (auto t = m.instantiate<ElectricalParameters>()) truth[t->header.stamp] = {t->R_s, t->L_d, t->L_q, t->psi_f};
+  StreamClock clock;
+  std::vector<SimulatedSample> rows;
+  for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery(topic))) {
+    auto b = m.instantiate<DriveSampleBatch>();
+    if (!b || !checkBatch(*b).empty()) continue;
+    ParameterVector p{NAN, NAN, NAN, NAN};
+    auto it = truth.upper_bound(b->header.stamp);
+    if (it != truth.begin()) p = std::prev(it)->second;
+    for (std::size_t k = 0; k < b->u_d.size(); ++k) {
+      SimulatedSample s;
+      s.sample = toSample(*b, k, clock.seconds(b->header.stamp, k, b->sample_period));
+      s.truth = p;
+      rows.push_back(s);
+    }
+  }
+  if (rows.empty()) throw InputError(bag_path + ": no DriveSampleBatch messages on " + topic);
+  writeSampleCsv(csv, rows);
+  std::printf("wrote %zu samples to %s\n", rows.size(), csv.c_str());
+  return 0;
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::string usage =
+      "usage: bag_tool csv2bag CSV BAG [BATCH]\n       bag_tool bag2csv BAG CSV [TOPIC]\n";
+  if (argc < 4) {
+    std::fputs(usage.c_str(), stderr);
+    return 2;
+  }
+  const std::string cmd = argv[1];
+  try {
+    ros::Time::init();
+    if (cmd == "csv2bag") return csv2bag(argv[2], argv[3], argc > 4 ? std::stoul(argv[4]) : 100);
+    if (cmd == "bag2csv") return bag2csv(argv[2], argv[3], argc > 4 ? argv[4] : kBatchTopic);
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 1;
+  }
+  std::fputs(usage.c_str(), stderr);
+  return 2;
+}

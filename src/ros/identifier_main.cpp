@@ -1,0 +1,19 @@
+// identifier node: see identifier_node.hpp and README (parameters, topics).
+#include "identifier_node.hpp"
+#include "pmsm_param_id/config_error.hpp"
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "identifier");
+  try {
+    pmsm_param_id::IdentifierNode node{ros::NodeHandle(), ros::NodeHandle("~")};
+    ros::spin();
+    const auto e = node.identifier().estimate();
+    ROS_INFO("%s final: R_s = %.6g ohm, L_d = %.6g H, L_q = %.6g H, psi_f = %.6g Wb (%llu samples)", e.method.c_str(),
+             e.parameters[0], e.parameters[1], e.parameters[2], e.parameters[3],
+             static_cast<unsigned long long>(e.counters.used));
+  } catch (const pmsm_param_id::ConfigError& e) {
+    ROS_FATAL("%s", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,153 @@
+#include "identifier_node.hpp"
+
+#include <cmath>
+
+#include "pmsm_param_id/config_error.hpp"
+
+namespace pmsm_param_id {
+
+IdentifierNode::IdentifierNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pnh), updater_(nh, pnh) {
+  std::string config_path, method, input;
+  pnh_.param<std::string>("config", config_path, "");
+  IdentifierConfig config = config_path.empty() ? IdentifierConfig{} : loadIdentifierConfig(config_path);
+  if (pnh_.getParam("method", method)) config.method = method;
+  int seed = -1;
+  if (pnh_.getParam("seed", seed)) {
+    if (seed < 0) throw ConfigError("parameter ~seed: must be >= 0");
+    config.seed = static_cast<std::uint64_t>(seed);
+  }
+  if (!isKnownMethod(config.method))
+    throw ConfigError("parameter ~method: unknown method '" + config.method + "' (expected " + methodList() + ")");
+  validate(config, config_path.empty() ? "parameters" : config_path);
+  pnh_.param("publish_period", publish_period_, 1e-3);
+  if (!(publish_period_ > 0)) throw ConfigError("parameter ~publish_period: must be > 0 [s]");
+  pnh_.param("timeout", timeout_, 1.0);
+  if (!(timeout_ > 0)) throw ConfigError("parameter ~timeout: must be > 0 [s]");
+  pnh_.param<std::string>("frame_id", frame_id_, "");
+  pnh_.param<std::string>("input", input, "batch");
+  if (input != "batch" && input != "single")
+    throw ConfigError("parameter ~input: must be 'batch' or 'single', got '" + input + "'");
+
+  identifier_ = makeIdentifier(config);
+  pub_estimate_ = pnh_.advertise<ParameterEstimate>("estimate", 1000);
+  const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
+  if (input == "batch")
+    sub_ = nh_.subscribe("samples_batch", 1000, &IdentifierNode::onBatch, this, hints);
+  else
+    sub_ = nh_.subscribe("samples", 100000, &IdentifierNode::onSample, this, hints);
+  updater_.setHardwareID("pmsm_param_id/" + config.method);
+  updater_.add("identifier", this, &IdentifierNode::diagnose);
+  last_receive_ = rate_window_start_ = ros::WallTime::now();
+  timer_ = nh_.createWallTimer(ros::WallDuration(0.1), &IdentifierNode::onTimer, this);
+  ROS_INFO("identifier '%s' listening on %s (%s), publishing %s every %g s of stamp time", config.method.c_str(),
+           sub_.getTopic().c_str(), input.c_str(), pub_estimate_.getTopic().c_str(), publish_period_);
+}
+
+void IdentifierNode::onBatch(const DriveSampleBatch::ConstPtr& msg) {
+  const std::string problem = checkBatch(*msg);
+  if (!problem.empty()) {
+    ++bad_messages_;
+    ROS_WARN_THROTTLE(1.0, "dropping a malformed sample batch: %s", problem.c_str());
+    return;
+  }
+  if (have_index_ && msg->first_index > expected_index_) {
+    dropped_ += msg->first_index - expected_index_;
+    ROS_WARN_THROTTLE(1.0, "%llu samples lost before index %llu",
+                      static_cast<unsigned long long>(msg->first_index - expected_index_),
+                      static_cast<unsigned long long>(msg->first_index));
+  }
+  expected_index_ = msg->first_index + msg->u_d.size();
+  have_index_ = true;
+  for (std::size_t k = 0; k < msg->u_d.size(); ++k)
+    consume(toSample(*msg, k, clock_.seconds(msg->header.stamp, k, msg->sample_period)));
+}
+
+void IdentifierNode::onSample(const DriveSample::ConstPtr& msg) { consume(toSample(*msg, clock_.seconds(msg->header.stamp))); }
+
+void IdentifierNode::consume(const Sample& s) {
+  ++received_;
+  ++rate_window_count_;
+  last_receive_ = ros::WallTime::now();
+  const SampleStatus status = identifier_->process(s);
+  switch (status) {
+    case SampleStatus::TimeReset:
+      ROS_WARN("stamps went backwards (a looping bag?): the identifier restarted from its initial values");
+      next_publish_ = 0.0;
+      break;
+    case SampleStatus::Gap:
+      ROS_WARN_THROTTLE(1.0, "gap in the sample stream at t = %.6f s: fitness blocks restarted", s.t);
+      break;
+    case SampleStatus::SkippedNonFinite:
+      ROS_WARN_THROTTLE(1.0, "skipping a sample with a NaN or inf value (%llu so far)",
+                        static_cast<unsigned long long>(identifier_->counters().skipped_nonfinite));
+      return;
+    case SampleStatus::SkippedDuplicate:
+      return;
+    case SampleStatus::Used:
+      break;
+  }
+  last_t_ = s.t;
+  unpublished_ = true;
+  if (s.t + 1e-12 >= next_publish_) {
+    publish();
+    next_publish_ = (std::floor(s.t / publish_period_ + 1e-9) + 1.0) * publish_period_;
+  }
+}
+
+void IdentifierNode::publish() {
+  const Estimate e = identifier_->estimate();
+  unpublished_ = false;
+  for (double v : e.parameters)
+    if (!std::isfinite(v)) {
+      ++nonfinite_estimates_;
+      ROS_WARN_THROTTLE(1.0, "non-finite estimate not published");
+      return;
+    }
+  pub_estimate_.publish(toMessage(e, clock_.stampOf(last_t_), frame_id_));
+  ++published_;
+}
+
+void IdentifierNode::onTimer(const ros::WallTimerEvent&) {
+  // The stream paused or ended: publish the state after the last sample once.
+  if (unpublished_ && (ros::WallTime::now() - last_receive_).toSec() > 0.2) publish();
+  const double window = (ros::WallTime::now() - rate_window_start_).toSec();
+  if (window >= 1.0) {
+    rate_ = static_cast<double>(rate_window_count_) / window;
+    rate_window_count_ = 0;
+    rate_window_start_ = ros::WallTime::now();
+  }
+  updater_.update();
+}
+
+void IdentifierNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
+  const IdentifierCounters& c = identifier_->counters();
+  const double silent = (ros::WallTime::now() - last_receive_).toSec();
+  using diagnostic_msgs::DiagnosticStatus;
+  if (received_ == 0 && silent > timeout_)
+    stat.summaryf(DiagnosticStatus::WARN, "no samples received for %.1f s on %s", silent, sub_.getTopic().c_str());
+  else if (silent > timeout_)
+    stat.summaryf(DiagnosticStatus::WARN, "no samples for %.1f s", silent);
+  else if (nonfinite_estimates_ > 0)
+    stat.summary(DiagnosticStatus::ERROR, "non-finite estimates");
+  else if (c.skipped_nonfinite + dropped_ + c.gaps + c.time_resets + bad_messages_ > 0)
+    stat.summary(DiagnosticStatus::WARN, "running; some input was bad (see counters)");
+  else
+    stat.summary(DiagnosticStatus::OK, "running");
+  const Estimate e = identifier_->estimate();
+  stat.add("method", e.method);
+  stat.add("samples received", received_);
+  stat.add("samples used", c.used);
+  stat.add("samples skipped (non-finite)", c.skipped_nonfinite);
+  stat.add("samples skipped (duplicate stamp)", c.skipped_duplicate);
+  stat.add("samples dropped (index gaps)", dropped_);
+  stat.add("malformed messages", bad_messages_);
+  stat.add("time gaps", c.gaps);
+  stat.add("time resets (stamps went backwards)", c.time_resets);
+  stat.add("rate [samples/s]", rate_);
+  stat.add("estimates published", published_);
+  stat.add("non-finite estimates", nonfinite_estimates_);
+  for (int p = 0; p < kParameterCount; ++p)
+    stat.add(parameterNames()[p] + " identifiable", e.identifiable[p] ? "yes" : "no");
+}
+
+}  // namespace pmsm_param_id

@@ -1,0 +1,50 @@
+// IdentifierNode: one ROS wrapper for every method of the core (the method is a parameter).
+#pragma once
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <ros/ros.h>
+
+#include <memory>
+#include <string>
+
+#include "pmsm_param_id/online_identifier.hpp"
+#include "ros_bridge.hpp"
+
+namespace pmsm_param_id {
+
+class IdentifierNode {
+ public:
+  /// Reads parameters and subscribes. Throws ConfigError (one line naming the parameter).
+  IdentifierNode(ros::NodeHandle nh, ros::NodeHandle pnh);
+  const OnlineIdentifier& identifier() const { return *identifier_; }
+
+ private:
+  void onBatch(const DriveSampleBatch::ConstPtr& msg);
+  void onSample(const DriveSample::ConstPtr& msg);
+  void consume(const Sample& s);
+  void publish();
+  void onTimer(const ros::WallTimerEvent&);
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
+
+  ros::NodeHandle nh_, pnh_;
+  std::unique_ptr<OnlineIdentifier> identifier_;
+  StreamClock clock_;
+  ros::Subscriber sub_;
+  ros::Publisher pub_estimate_;
+  ros::WallTimer timer_;
+  diagnostic_updater::Updater updater_;
+  std::string frame_id_;
+  double publish_period_ = 1e-3;   // [s] of stamp time
+  double timeout_ = 1.0;           // [s] of wall time without samples -> WARN
+  double next_publish_ = 0.0;
+  double last_t_ = 0.0;
+  bool unpublished_ = false;
+  std::uint64_t received_ = 0, dropped_ = 0, bad_messages_ = 0, nonfinite_estimates_ = 0, published_ = 0;
+  std::uint64_t expected_index_ = 0;
+  bool have_index_ = false;
+  ros::WallTime last_receive_;
+  ros::WallTime rate_window_start_;
+  std::uint64_t rate_window_count_ = 0;
+  double rate_ = 0.0;
+};
+
+}  // namespace pmsm_param_id

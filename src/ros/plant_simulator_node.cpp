@@ -1,0 +1,105 @@
+// plant_simulator node: runs a scenario of the core's DriveSimulator and publishes its samples.
+//   ~scenario (string, required)   scenario YAML
+//   ~duration (double, s)          override run.duration (<= 0: the file's)
+//   ~seed (int)                    override run.seed (< 0: the file's)
+//   ~realtime_factor (double)      1 = real time, 10 = ten times faster, 0 = as fast as possible
+//   ~batch_size (int)              samples per DriveSampleBatch message
+//   ~decimation (int)              every N-th sample also goes to ~samples (for humans, rostopic echo)
+//   ~linger (double, s)            stay up this long after the last sample (subscribers drain)
+//   ~wait_for_subscribers (int)    wait (at most 20 s) until this many nodes listen to samples_batch
+// Publishes ~samples_batch (DriveSampleBatch), ~samples (DriveSample), ~true_parameters
+// (ElectricalParameters, once per batch). Stamps start at the node's start time.
+#include <ros/ros.h>
+
+#include "pmsm_param_id/config_error.hpp"
+#include "pmsm_param_id/drive_simulator.hpp"
+#include "ros_bridge.hpp"
+
+using namespace pmsm_param_id;
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "plant_simulator");
+  ros::NodeHandle pnh("~");
+  std::string path;
+  if (!pnh.getParam("scenario", path)) {
+    ROS_FATAL("parameter ~scenario: missing (path of a scenario YAML)");
+    return 1;
+  }
+  double duration = pnh.param("duration", 0.0), realtime = pnh.param("realtime_factor", 1.0);
+  double linger = pnh.param("linger", 1.0);
+  const int seed = pnh.param("seed", -1), batch = pnh.param("batch_size", 100), decimation = pnh.param("decimation", 100);
+  if (batch < 1) { ROS_FATAL("parameter ~batch_size: must be >= 1"); return 1; }
+  if (decimation < 1) { ROS_FATAL("parameter ~decimation: must be >= 1"); return 1; }
+  if (realtime < 0) { ROS_FATAL("parameter ~realtime_factor: must be >= 0"); return 1; }
+  Scenario scenario;
+  try {
+    scenario = loadScenario(path);
+  } catch (const ConfigError& e) {
+    ROS_FATAL("parameter ~scenario: %s", e.what());
+    return 1;
+  }
+  if (duration > 0) scenario.duration = duration;
+  if (seed >= 0) scenario.seed = static_cast<std::uint64_t>(seed);
+
+  ros::Publisher pub_batch = pnh.advertise<DriveSampleBatch>("samples_batch", 1000);
+  ros::Publisher pub_sample = pnh.advertise<DriveSample>("samples", 1000);
+  ros::Publisher pub_truth = pnh.advertise<ElectricalParameters>("true_parameters", 100, true);
+  const int wait_for = pnh.param("wait_for_subscribers", 0);
+  const ros::WallTime wait_start = ros::WallTime::now();
+  while (ros::ok() && static_cast<int>(pub_batch.getNumSubscribers()) < wait_for &&
+         (ros::WallTime::now() - wait_start).toSec() < 20.0)
+    ros::WallDuration(0.05).sleep();
+  if (static_cast<int>(pub_batch.getNumSubscribers()) < wait_for)
+    ROS_WARN("only %u of %d subscribers after 20 s; starting anyway", pub_batch.getNumSubscribers(), wait_for);
+  ros::WallDuration(0.5).sleep();  // let the remaining connections (estimates -> recorder) settle
+
+  DriveSimulator sim(scenario);
+  const double Ts = scenario.drive.sample_period;
+  const ros::Time start = ros::Time::now();
+  const ros::WallTime wall_start = ros::WallTime::now();
+  ROS_INFO("simulating '%s': %.3g s at T_s = %.3g s, batches of %d, real-time factor %g", scenario.name.c_str(),
+           scenario.duration, Ts, batch, realtime);
+  std::uint64_t published = 0;
+  while (ros::ok() && !sim.done()) {
+    DriveSampleBatch msg;
+    msg.sample_period = Ts;
+    msg.first_index = sim.sampleIndex();
+    ParameterVector truth{};
+    for (int k = 0; k < batch && !sim.done(); ++k) {
+      const SimulatedSample s = sim.step();
+      if (k == 0) {
+        msg.header.stamp = start + ros::Duration(static_cast<double>(msg.first_index) * Ts);
+        truth = s.truth;
+      }
+      msg.u_d.push_back(s.sample.u_d);
+      msg.u_q.push_back(s.sample.u_q);
+      msg.i_d.push_back(s.sample.i_d);
+      msg.i_q.push_back(s.sample.i_q);
+      msg.omega_e.push_back(s.sample.omega_e);
+      if ((msg.first_index + static_cast<std::uint64_t>(k)) % static_cast<std::uint64_t>(decimation) == 0) {
+        DriveSample one;
+        one.header.stamp = msg.header.stamp + ros::Duration(k * Ts);
+        one.u_d = s.sample.u_d;
+        one.u_q = s.sample.u_q;
+        one.i_d = s.sample.i_d;
+        one.i_q = s.sample.i_q;
+        one.omega_e = s.sample.omega_e;
+        pub_sample.publish(one);
+      }
+    }
+    published += msg.u_d.size();
+    pub_batch.publish(msg);
+    pub_truth.publish(toMessage(truth, msg.header.stamp));
+    if (realtime > 0) {
+      const double due = static_cast<double>(sim.sampleIndex()) * Ts / realtime;
+      const double ahead = due - (ros::WallTime::now() - wall_start).toSec();
+      if (ahead > 0) ros::WallDuration(ahead).sleep();
+    }
+  }
+  ROS_INFO("published %llu samples (%.3g s of drive time) in %.3g s of wall time",
+           static_cast<unsigned long long>(published), static_cast<double>(published) * Ts,
+           (ros::WallTime::now() - wall_start).toSec());
+  pnh.setParam("samples_published", static_cast<int>(published));
+  ros::WallDuration(linger).sleep();
+  return 0;
+}

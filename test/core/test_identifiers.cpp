@@ -1,0 +1,201 @@
+// The five online identifiers on simulated drives, observability flags and bad input.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "pmsm_param_id/config_error.hpp"
+#include "pmsm_param_id/metrics.hpp"
+#include "pmsm_param_id/online_identifier.hpp"
+#include "pmsm_param_id/sample_csv.hpp"
+#include "test_helpers.hpp"
+
+using namespace pmsm_param_id;
+
+namespace {
+// wc1 at 10 kHz without noise: the paper's condition at a real drive's rate.
+std::vector<SimulatedSample> cleanDrive(const char* file = "wc1_drive.yaml", double duration = 0.3) {
+  Scenario s = test_helpers::scenario(file);
+  s.sensors = {};
+  s.duration = duration;
+  return test_helpers::run(s);
+}
+Estimate identify(const std::vector<SimulatedSample>& data, const std::string& method, std::uint64_t seed = 1) {
+  IdentifierConfig c;
+  c.method = method;
+  c.seed = seed;
+  auto id = makeIdentifier(c);
+  for (const auto& s : data) id->process(s.sample);
+  return id->estimate();
+}
+}  // namespace
+
+struct MethodTolerance {
+  const char* method;
+  double tolerance_percent;  // every parameter, noise-free wc1 at 10 kHz
+};
+class EachMethod : public ::testing::TestWithParam<MethodTolerance> {};
+
+TEST_P(EachMethod, RecoversTheParametersOfANoiseFreeRun) {
+  static const auto data = cleanDrive();
+  const auto [method, tol] = GetParam();
+  const Estimate e = identify(data, method);
+  EXPECT_EQ(e.method, method);
+  for (int p = 0; p < kParameterCount; ++p)
+    EXPECT_NEAR(errorPercent(e.parameters[p], data.back().truth[p]), 0.0, tol)
+        << method << " " << parameterNames()[p] << " = " << e.parameters[p];
+  EXPECT_EQ(e.counters.used, data.size());
+}
+// EKF uses the paper's forward-Euler model (Eq. 11): its error at 10 kHz is the discretisation's.
+INSTANTIATE_TEST_SUITE_P(Methods, EachMethod,
+                         ::testing::Values(MethodTolerance{"fbdapso", 0.1}, MethodTolerance{"sapso", 0.1},
+                                           MethodTolerance{"pso", 0.1}, MethodTolerance{"rls", 0.1},
+                                           MethodTolerance{"ekf", 3.0}));
+
+TEST(OnlineIdentifier, SameSeedSameResult) {
+  const auto data = cleanDrive("wc1_drive.yaml", 0.1);
+  const Estimate a = identify(data, "fbdapso", 5), b = identify(data, "fbdapso", 5);
+  EXPECT_EQ(a.parameters, b.parameters);
+  EXPECT_EQ(a.fitness, b.fitness);
+}
+
+TEST(OnlineIdentifier, LdIsFlaggedOnIdZeroDataOthersAreNot) {
+  Scenario s = test_helpers::scenario("wc1_no_injection.yaml");
+  s.drive.sample_period = 1e-4;
+  s.drive.integration_substeps = 10;
+  const auto data = test_helpers::run(s);
+  for (const char* m : {"fbdapso", "rls"}) {
+    const Estimate e = identify(data, m);
+    EXPECT_FALSE(e.identifiable[kLd]) << m << " rel std " << e.relative_std[kLd];
+    EXPECT_TRUE(e.identifiable[kLq]) << m;
+  }
+  // With the injection the same data determine all four.
+  const Estimate injected = identify(cleanDrive("wc1_drive.yaml", 0.5), "fbdapso");
+  for (int p = 0; p < kParameterCount; ++p) EXPECT_TRUE(injected.identifiable[p]) << parameterNames()[p];
+}
+
+TEST(OnlineIdentifier, NonFiniteSampleIsSkippedAndCountedEstimateUnchanged) {
+  const auto data = cleanDrive("wc1_drive.yaml", 0.1);
+  IdentifierConfig c;
+  auto id = makeIdentifier(c);
+  for (std::size_t k = 0; k < 800; ++k) id->process(data[k].sample);
+  const ParameterVector before = id->parameters();
+  Sample bad = data[800].sample;
+  bad.i_q = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(id->process(bad), SampleStatus::SkippedNonFinite);
+  bad.i_q = data[800].sample.i_q;
+  bad.u_d = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(id->process(bad), SampleStatus::SkippedNonFinite);
+  EXPECT_EQ(id->parameters(), before);
+  const Estimate e = id->estimate();
+  EXPECT_EQ(e.counters.skipped_nonfinite, 2u);
+  EXPECT_TRUE(std::isfinite(e.fitness));
+  for (std::size_t k = 801; k < data.size(); ++k) EXPECT_EQ(id->process(data[k].sample), SampleStatus::Used);
+}
+
+TEST(OnlineIdentifier, TimeGoingBackwardsResetsCleanly) {
+  const auto data = cleanDrive("wc1_drive.yaml", 0.1);
+  IdentifierConfig c;
+  auto fresh = makeIdentifier(c), looped = makeIdentifier(c);
+  for (const auto& s : data) looped->process(s.sample);
+  // The bag loops: the same samples again. After the reset it must behave like a fresh one.
+  EXPECT_EQ(looped->process(data[0].sample), SampleStatus::TimeReset);
+  fresh->process(data[0].sample);
+  for (std::size_t k = 1; k < data.size(); ++k) {
+    looped->process(data[k].sample);
+    fresh->process(data[k].sample);
+  }
+  EXPECT_EQ(looped->parameters(), fresh->parameters());
+  EXPECT_EQ(looped->counters().time_resets, 1u);
+}
+
+TEST(OnlineIdentifier, GapIsCountedAndDuplicateSkipped) {
+  const auto data = cleanDrive("wc1_drive.yaml", 0.1);
+  IdentifierConfig c;
+  auto id = makeIdentifier(c);
+  for (std::size_t k = 0; k < 300; ++k) id->process(data[k].sample);
+  EXPECT_EQ(id->process(data[299].sample), SampleStatus::SkippedDuplicate);
+  EXPECT_EQ(id->process(data[400].sample), SampleStatus::Gap);
+  for (std::size_t k = 401; k < data.size(); ++k) id->process(data[k].sample);
+  EXPECT_EQ(id->counters().gaps, 1u);
+  EXPECT_EQ(id->counters().skipped_duplicate, 1u);
+}
+
+TEST(OnlineIdentifier, FollowsTheStatorResistanceRamp) {
+  Scenario s = test_helpers::scenario("rs_drift.yaml");
+  const auto data = test_helpers::run(s);
+  IdentifierConfig c;
+  auto id = makeIdentifier(c);
+  double worst = 0;
+  for (const auto& x : data) {
+    id->process(x.sample);
+    if (x.sample.t >= 1.2) worst = std::max(worst, std::abs(errorPercent(id->parameters()[kRs], x.truth[kRs])));
+  }
+  EXPECT_LT(worst, 1.0);
+}
+
+TEST(IdentifierConfig, BadValuesNameTheKey) {
+  auto message = [](IdentifierConfig c) {
+    try {
+      validate(c, "cfg.yaml");
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  IdentifierConfig c;
+  c.method = "gradient";
+  EXPECT_EQ(message(c), "cfg.yaml: key 'method': unknown method 'gradient' (expected fbdapso, sapso, pso, ekf, rls)");
+  c = {};
+  c.lower[kLq] = c.upper[kLq];
+  EXPECT_EQ(message(c), "cfg.yaml: key 'bounds.L_q': lower bound must be < upper bound");
+  c = {};
+  c.swarm.particles = 1;
+  EXPECT_EQ(message(c), "cfg.yaml: key 'swarm.particles': population must be >= 2");
+  const std::string path = test_helpers::writeTemp("bad_id.yaml", "bounds:\n  R_s: [3.0, 1.0]\n");
+  try {
+    loadIdentifierConfig(path);
+    ADD_FAILURE();
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()), path + ": key 'bounds.R_s': lower bound must be < upper bound");
+  }
+  EXPECT_NO_THROW(loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/default.yaml")));
+}
+
+TEST(SampleCsvReader, MissingColumnAndNonNumericCellNameTheLine) {
+  const std::string a = test_helpers::writeTemp("a.csv", "t,u_d,u_q,i_d,omega_e\n0,1,2,3,4\n");
+  try {
+    readSampleCsv(a);
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), a + ":1: missing column 'i_q' (header must contain t,u_d,u_q,i_d,i_q,omega_e)");
+  }
+  const std::string b = test_helpers::writeTemp("b.csv", "t,u_d,u_q,i_d,i_q,omega_e\n0,1,2,3,4,5\n1e-4,1,2,x3,4,5\n");
+  try {
+    readSampleCsv(b);
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), b + ":3: column 'i_d': not a number: 'x3'");
+  }
+  const std::string c = test_helpers::writeTemp("c.csv", "t,u_d,u_q,i_d,i_q,omega_e,extra\n0,1,2,nan,4,5,z\n1e-4,1,inf,3,4,5,z\n");
+  const SampleLog log = readSampleCsv(c);  // extra columns ignored, non-finite kept for the identifier
+  ASSERT_EQ(log.samples.size(), 2u);
+  EXPECT_TRUE(std::isnan(log.samples[0].i_d));
+  EXPECT_TRUE(std::isinf(log.samples[1].u_q));
+  EXPECT_FALSE(log.has_truth);
+}
+
+TEST(Metrics, RecognitionTimeIsTheLastEntryIntoTheBand) {
+  std::vector<TracePoint> trace;
+  const ParameterVector truth{1, 1, 1, 1};
+  for (int k = 0; k < 10; ++k) {
+    ParameterVector e = truth;
+    e[kRs] = k == 3 ? 1.02 : (k < 2 ? 1.5 : 1.005);
+    e[kLd] = k == 6 ? 1.5 : 1.0;  // L_d leaves the band at k = 6 but is not selected
+    trace.push_back({0.1 * k, e, truth});
+  }
+  EXPECT_DOUBLE_EQ(recognitionTime(trace, {true, false, true, true}), 0.4);
+  EXPECT_DOUBLE_EQ(recognitionTime(trace, {true, true, true, true}), 0.7000000000000001);
+  trace.back().estimate[kRs] = 2.0;
+  EXPECT_TRUE(std::isnan(recognitionTime(trace, {true, false, false, false})));
+}

@@ -1,0 +1,127 @@
+// The swarm engine and its acceptance policies (Eq. 4-8, 15-17).
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "pmsm_param_id/particle_swarm.hpp"
+
+using namespace pmsm_param_id;
+
+TEST(Acceptance, PsoTakesEveryMove) {
+  AlwaysAccept p;
+  ParticleTemperature th;
+  EXPECT_TRUE(p.accept(1e9, 0.999, th));
+  EXPECT_FALSE(p.hasTemperature());
+}
+
+TEST(Acceptance, MetropolisFollowsEq16) {
+  MetropolisAcceptance p(1000.0, 0.8);
+  ParticleTemperature th;
+  p.reset(th);
+  EXPECT_DOUBLE_EQ(th.T, 1000.0);
+  EXPECT_TRUE(p.accept(-1.0, 0.999999, th));  // better: always
+  EXPECT_TRUE(p.accept(0.0, 0.999999, th));   // equal: p = 1 (Eq. 16)
+  // worse by 693.1 at T = 1000: p = exp(-0.6931) = 0.5
+  EXPECT_TRUE(p.accept(693.1, 0.49, th));
+  EXPECT_FALSE(p.accept(693.1, 0.51, th));
+  p.endIteration(th);
+  EXPECT_DOUBLE_EQ(th.T, 800.0);  // Eq. (7) once per iteration
+}
+
+TEST(Acceptance, BackfireZeroDeltaUsesEq17) {
+  BackfireDoubleAnnealing p(800.0, 500.0, 0.8, 0.9, 0.001);
+  ParticleTemperature th;
+  p.reset(th);
+  th.T = 0.001 / std::log(2.0);  // exp(-0.001 / T) = 0.5
+  EXPECT_FALSE(p.accept(0.0, 0.51, th));
+  EXPECT_EQ(th.accepted_worse, 0);
+  EXPECT_TRUE(p.accept(0.0, 0.49, th));
+  EXPECT_EQ(th.accepted_worse, 1);
+}
+
+TEST(Acceptance, BackfireTemperingAndAnnealingFollowEq7And8) {
+  BackfireDoubleAnnealing p(800.0, 500.0, 0.8, 0.9, 0.001);
+  ParticleTemperature th;
+  p.reset(th);
+  EXPECT_DOUBLE_EQ(th.T, 800.0);
+  // Better move: general annealing only.
+  EXPECT_TRUE(p.accept(-0.5, 0.0, th));
+  EXPECT_DOUBLE_EQ(th.T, 640.0);
+  // Worse move accepted (d = 1): T <- C1 (T + C2^1 T2) = 0.8 (640 + 450).
+  EXPECT_TRUE(p.accept(1.0, 0.0, th));
+  EXPECT_EQ(th.accepted_worse, 1);
+  EXPECT_DOUBLE_EQ(th.T, 0.8 * (640.0 + 450.0));
+  // Second worse acceptance (d = 2): C2^2 T2 = 405.
+  const double before = th.T;
+  EXPECT_TRUE(p.accept(1.0, 0.0, th));
+  EXPECT_DOUBLE_EQ(th.T, 0.8 * (before + 405.0));
+  // Rejected move: temperature untouched.
+  const double t2 = th.T;
+  EXPECT_FALSE(p.accept(1e9, 0.5, th));
+  EXPECT_DOUBLE_EQ(th.T, t2);
+  p.endIteration(th);
+  EXPECT_DOUBLE_EQ(th.T, t2);
+  p.reset(th);  // the counter reset restores T1 and d = 0
+  EXPECT_DOUBLE_EQ(th.T, 800.0);
+  EXPECT_EQ(th.accepted_worse, 0);
+}
+
+namespace {
+// A shifted, badly scaled quadratic with its minimum inside the box.
+double bowl(const ParameterVector& p) {
+  const double a = p[0] - 2.0, b = (p[1] - 0.004) / 0.001, c = (p[2] - 0.012) / 0.001, d = (p[3] - 0.2) / 0.05;
+  return a * a + b * b + c * c + d * d + 0.5 * a * d;
+}
+}  // namespace
+
+class SwarmFindsMinimum : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(SwarmFindsMinimum, OfAKnownFunction) {
+  std::shared_ptr<AcceptancePolicy> policy;
+  const std::string m = GetParam();
+  if (m == "pso") policy = std::make_shared<AlwaysAccept>();
+  if (m == "sapso") policy = std::make_shared<MetropolisAcceptance>(1000.0, 0.8);
+  if (m == "fbdapso") policy = std::make_shared<BackfireDoubleAnnealing>(800.0, 500.0, 0.8, 0.9, 0.001);
+  ParticleSwarm swarm(SwarmSettings{}, policy, {0.5, 0.0005, 0.0005, 0.02}, {10.0, 0.03, 0.03, 0.6}, 7);
+  for (int i = 0; i < 1500; ++i) swarm.iterate(bowl);
+  const ParameterVector b = swarm.best();
+  EXPECT_NEAR(b[0], 2.0, 0.01) << m;
+  EXPECT_NEAR(b[1], 0.004, 0.00001) << m;
+  EXPECT_NEAR(b[2], 0.012, 0.00001) << m;
+  EXPECT_NEAR(b[3], 0.2, 0.0005) << m;
+  EXPECT_LT(swarm.bestFitness(), 1e-3) << m;
+  EXPECT_EQ(swarm.iterations(), 1500u);
+}
+INSTANTIATE_TEST_SUITE_P(Policies, SwarmFindsMinimum, ::testing::Values("pso", "sapso", "fbdapso"));
+
+TEST(ParticleSwarm, SameSeedSameTrajectoryOtherSeedOther) {
+  auto run = [](std::uint64_t seed) {
+    ParticleSwarm s(SwarmSettings{}, std::make_shared<BackfireDoubleAnnealing>(800.0, 500.0, 0.8, 0.9, 0.001),
+                    {0.5, 0.0005, 0.0005, 0.02}, {10.0, 0.03, 0.03, 0.6}, seed);
+    for (int i = 0; i < 30; ++i) s.iterate(bowl);
+    return s.best();
+  };
+  EXPECT_EQ(run(3), run(3));
+  EXPECT_NE(run(3), run(4));
+}
+
+TEST(ParticleSwarm, StaysInsideTheBounds) {
+  ParticleSwarm s(SwarmSettings{}, std::make_shared<AlwaysAccept>(), {1, 1, 1, 1}, {2, 2, 2, 2}, 1);
+  // Minimum far outside the box: the best must sit on the boundary, never beyond it.
+  const auto f = [](const ParameterVector& p) { return -(p[0] + p[1] + p[2] + p[3]); };
+  for (int i = 0; i < 200; ++i) s.iterate(f);
+  for (double v : s.best()) {
+    EXPECT_LE(v, 2.0);
+    EXPECT_GE(v, 1.0);
+    EXPECT_NEAR(v, 2.0, 1e-6);
+  }
+}
+
+TEST(ParticleSwarm, RefusesBadSettings) {
+  SwarmSettings one;
+  one.particles = 1;
+  EXPECT_THROW(ParticleSwarm(one, std::make_shared<AlwaysAccept>(), {1, 1, 1, 1}, {2, 2, 2, 2}, 1),
+               std::invalid_argument);
+  EXPECT_THROW(ParticleSwarm(SwarmSettings{}, std::make_shared<AlwaysAccept>(), {1, 1, 3, 1}, {2, 2, 2, 2}, 1),
+               std::invalid_argument);
+}
