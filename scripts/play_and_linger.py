@@ -35,7 +35,8 @@ def main():
             break
         time.sleep(0.1)
     time.sleep(1.0)
-    code = subprocess.call(["rosbag", "play"] + play_args)
+    # -d: wait after advertising, so every subscriber is connected before the first message.
+    code = subprocess.call(["rosbag", "play", "-d", "1"] + play_args)
     time.sleep(args.linger)
     return code
 

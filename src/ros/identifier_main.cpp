@@ -4,8 +4,11 @@
 
 int main(int argc, char** argv) {
   ros::init(argc, argv, "identifier");
+  // Handles outlive the node object: if its constructor throws, ROS (and rosconsole) must still be
+  // up to print the FATAL line; the last NodeHandle going away shuts both down.
+  ros::NodeHandle nh, pnh("~");
   try {
-    pmsm_param_id::IdentifierNode node{ros::NodeHandle(), ros::NodeHandle("~")};
+    pmsm_param_id::IdentifierNode node{nh, pnh};
     ros::spin();
     const auto e = node.identifier().estimate();
     ROS_INFO("%s final: R_s = %.6g ohm, L_d = %.6g H, L_q = %.6g H, psi_f = %.6g Wb (%llu samples)", e.method.c_str(),

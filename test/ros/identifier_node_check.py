@@ -1,0 +1,101 @@
+#!/usr/bin/env python3
+"""Test node of identifier_node.test."""
+import math
+import time
+import unittest
+
+import rospy
+import rostest
+from diagnostic_msgs.msg import DiagnosticArray
+
+from pmsm_param_id.msg import DriveSampleBatch, ElectricalParameters, ParameterEstimate
+
+
+class IdentifierNode(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node("identifier_node_check")
+        cls.estimates, cls.probe, cls.diag = [], [], {}
+        cls.truth = None
+        rospy.Subscriber("/identifiers/fbdapso/estimate", ParameterEstimate, cls.estimates.append)
+        rospy.Subscriber("/probe/estimate", ParameterEstimate, cls.probe.append)
+        rospy.Subscriber("/drive/true_parameters", ElectricalParameters, lambda m: setattr(cls, "truth", m))
+        rospy.Subscriber("/diagnostics", DiagnosticArray, cls.on_diag)
+
+    @classmethod
+    def on_diag(cls, msg):
+        for s in msg.status:
+            cls.diag[s.name] = s
+
+    def wait_for(self, predicate, timeout=60.0):
+        deadline = time.time() + timeout
+        while time.time() < deadline and not rospy.is_shutdown():
+            if predicate():
+                return True
+            time.sleep(0.05)
+        return False
+
+    def test_plant_and_identifier_converge_without_losing_samples(self):
+        self.assertTrue(self.wait_for(lambda: rospy.has_param("/drive/samples_published")), "plant did not finish")
+        published = rospy.get_param("/drive/samples_published")
+        self.assertEqual(published, 3000)
+        self.assertTrue(self.wait_for(lambda: self.estimates and self.estimates[-1].samples_used == published, 20),
+                        "identifier did not process every sample")
+        e, t = self.estimates[-1], self.truth
+        for name in ("R_s", "L_d", "L_q", "psi_f"):
+            self.assertLess(abs(getattr(e, name) / getattr(t, name) - 1.0), 0.01, name)
+        self.assertTrue(all(e.identifiable))
+
+    def batch(self, stamp, first_index, n=50, nan_at=None, period=1e-4):
+        b = DriveSampleBatch()
+        b.header.stamp = stamp
+        b.sample_period = period
+        b.first_index = first_index
+        for k in range(n):
+            b.u_d.append(-50.0 + math.sin(k))
+            b.u_q.append(100.0)
+            b.i_d.append(0.1 * math.cos(k))
+            b.i_q.append(9.0)
+            b.omega_e.append(418.9)
+        if nan_at is not None:
+            b.i_q[nan_at] = float("nan")
+        return b
+
+    def counters(self, name):
+        status = self.diag.get(name)
+        return {} if status is None else {kv.key: kv.value for kv in status.values}
+
+    def test_bad_input_is_counted_and_reported_not_fatal(self):
+        pub = rospy.Publisher("/probe_samples", DriveSampleBatch, queue_size=100)
+        self.assertTrue(self.wait_for(lambda: pub.get_num_connections() > 0, 20))
+        t0 = rospy.Time(5000.0)
+        dt = rospy.Duration(50 * 1e-4)
+        pub.publish(self.batch(t0, 0))
+        pub.publish(self.batch(t0 + dt, 50, nan_at=7))           # one non-finite sample
+        pub.publish(self.batch(t0 + dt * 3, 150))                # 50 samples lost: a gap
+        bad = self.batch(t0 + dt * 4, 200)
+        bad.i_d.pop()                                            # malformed: arrays of different lengths
+        pub.publish(bad)
+        pub.publish(self.batch(t0 + dt * 4, 200))
+        pub.publish(self.batch(t0, 0))                           # stamps go backwards: the bag looped
+        name = "probe: identifier"
+        self.assertTrue(self.wait_for(lambda: self.counters(name).get("time resets (stamps went backwards)") == "1", 30),
+                        str(self.counters(name)))
+        c = self.counters(name)
+        self.assertEqual(c["samples skipped (non-finite)"], "1")
+        self.assertEqual(c["samples dropped (index gaps)"], "50")
+        self.assertEqual(c["malformed messages"], "1")
+        self.assertEqual(c["time gaps"], "1")
+        self.assertEqual(c["samples received"], "250")
+        self.assertEqual(self.diag[name].level, 1)  # WARN
+        self.assertTrue(self.wait_for(lambda: self.probe and self.probe[-1].samples_used == 249, 10))
+        self.assertTrue(all(math.isfinite(v) for v in (self.probe[-1].R_s, self.probe[-1].psi_f)))
+
+    def test_no_samples_gives_a_warning(self):
+        name = "silent: identifier"
+        self.assertTrue(self.wait_for(lambda: name in self.diag and self.diag[name].level == 1, 30))
+        self.assertIn("no samples received", self.diag[name].message)
+
+
+if __name__ == "__main__":
+    rostest.rosrun("pmsm_param_id", "identifier_node", IdentifierNode)
