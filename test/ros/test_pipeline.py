@@ -115,6 +115,66 @@ class Pipeline(unittest.TestCase):
             self.assertEqual(core[name], value, name)
 
 
+class Report(unittest.TestCase):
+    """The report tool on bags from demo.launch (Pipeline's live bag is made again here, short)."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.mkdtemp(prefix="pmsm_report_")
+        cls.bag = os.path.join(cls.tmp, "live.bag")
+        cls.log = roslaunch("demo.launch", "duration:=0.3", "bag:=" + cls.bag)
+
+    def report(self, bag, out):
+        script = os.path.join(os.path.dirname(__file__), "..", "..", "scripts", "report.py")
+        return subprocess.run(["/usr/bin/python3", script, bag, "--out", out], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True, timeout=300)
+
+    def test_figures_and_table_hold_the_bag_estimates(self):
+        out = os.path.join(self.tmp, "report")
+        r = self.report(self.bag, out)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        for name in ("R_s.png", "L_d.png", "L_q.png", "psi_f.png", "fitness.png", "report.md"):
+            self.assertGreater(os.path.getsize(os.path.join(out, name)), 1000, name)
+        with open(os.path.join(out, "report.md")) as f:
+            table = f.read()
+        rows = {line.split("|")[1].strip().split(" ")[0]: [c.strip() for c in line.split("|")[2:-1]]
+                for line in table.splitlines() if line.startswith("| ") and "[" in line.split("|")[1]}
+        header = [l for l in table.splitlines() if l.startswith("| Parameter")][0]
+        columns = [c.strip() for c in header.split("|")[1:-1]]
+        est = estimates(self.bag)
+        for i, p in enumerate(["R_s", "L_d", "L_q", "psi_f"]):
+            for m in METHODS:
+                cell = rows[p][columns.index(m) - 1]
+                self.assertAlmostEqual(float(cell.split(" ")[0]), est[m][-1][1][i], delta=abs(est[m][-1][1][i]) * 1e-5,
+                                       msg="%s %s: %s" % (m, p, cell))
+        self.assertIn("paper fbdapso", header)  # wc1_drive is recognised as the paper's wc1
+
+    def test_a_bag_without_estimates_or_truth_says_what_is_missing(self):
+        tmp = tempfile.mkdtemp(prefix="pmsm_report_missing_")
+        csv, bag = os.path.join(tmp, "x.csv"), os.path.join(tmp, "x.bag")
+        with open(csv, "w") as f:
+            f.write("t,u_d,u_q,i_d,i_q,omega_e\n")
+            for k in range(20):
+                f.write("%g,1,2,3,4,5\n" % (k * 1e-4))
+        self.assertEqual(tool("bag_tool", "csv2bag", csv, bag).returncode, 0)
+        r = self.report(bag, os.path.join(tmp, "report"))
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("no estimates", r.stderr)
+        self.assertIn("no true parameters", r.stderr)
+        with open(os.path.join(tmp, "report", "report.md")) as f:
+            self.assertIn("Missing from this bag", f.read())
+        self.assertTrue(os.path.exists(os.path.join(tmp, "report", "R_s.png")))
+
+    def test_not_a_bag_is_one_clear_line(self):
+        path = os.path.join(self.tmp, "notes.bag")
+        with open(path, "w") as f:
+            f.write("this is not a bag\n")
+        r = self.report(path, os.path.join(self.tmp, "nothing"))
+        self.assertNotEqual(r.returncode, 0)
+        self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+        self.assertIn("not a readable bag", r.stderr)
+
+
 class BadParameters(unittest.TestCase):
     def test_unknown_method_stops_the_node_with_one_line_naming_the_parameter(self):
         master = subprocess.Popen(["rosmaster", "--core", "-p", str(PORT + 1)], stdout=subprocess.DEVNULL,

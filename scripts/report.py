@@ -1,0 +1,267 @@
+#!/usr/bin/env python3
+"""Turns a bag into figures and the paper's table.
+
+    report.py BAG [--out DIR] [--reference CSV] [--condition wc1|wc2|auto|none]
+
+Reads the estimates (*/estimate, pmsm_param_id/ParameterEstimate) and, when present, the true
+parameters (/drive/true_parameters) and samples (/drive/samples_batch). Writes DIR/R_s.png,
+L_d.png, L_q.png, psi_f.png (every method against truth, as the paper's Figs. 5-6, 8-9),
+DIR/fitness.png (Figs. 7 and 10) and DIR/report.md (Table 2/3 layout with the paper's numbers
+beside ours). Works on bags from demo.launch, replay.launch and csv2bag + replay.
+"""
+import argparse
+import csv
+import math
+import os
+import sys
+
+PARAMS = ["R_s", "L_d", "L_q", "psi_f"]
+UNITS = {"R_s": "ohm", "L_d": "H", "L_q": "H", "psi_f": "Wb"}
+ORDER = ["fbdapso", "sapso", "pso", "ekf", "rls"]
+COLORS = {"fbdapso": "tab:red", "sapso": "tab:orange", "pso": "tab:green", "ekf": "tab:blue", "rls": "tab:purple"}
+TOLERANCE = 0.01  # recognition band, relative
+
+
+class BagData:
+    def __init__(self):
+        self.estimates = {}   # method -> list of (t, msg)
+        self.truth = []       # list of (t, (R_s, L_d, L_q, psi_f))
+        self.speeds = []      # electrical speed samples [rad/s]
+        self.origin = None    # first stamp [ns]
+        self.missing = []     # what the bag lacks, in words
+
+
+def read_bag(path):
+    import rosbag  # Debian's python3-rosbag
+    data = BagData()
+    try:
+        bag = rosbag.Bag(path)
+    except Exception as e:  # rosbag raises several types for "not a bag"
+        raise SystemExit("error: %s: not a readable bag (%s)" % (path, e))
+    with bag:
+        topics = bag.get_type_and_topic_info().topics
+        est_topics = [t for t, info in topics.items() if info.msg_type == "pmsm_param_id/ParameterEstimate"]
+        raw = []
+        for topic, msg, _ in bag.read_messages(topics=est_topics + ["/drive/true_parameters", "/drive/samples_batch"]):
+            stamp = msg.header.stamp.to_nsec()
+            data.origin = stamp if data.origin is None else min(data.origin, stamp)
+            raw.append((topic, msg, stamp))
+    if data.origin is None:
+        data.origin = 0
+    for topic, msg, stamp in raw:
+        t = (stamp - data.origin) * 1e-9
+        if topic == "/drive/true_parameters":
+            data.truth.append((t, (msg.R_s, msg.L_d, msg.L_q, msg.psi_f)))
+        elif topic == "/drive/samples_batch":
+            data.speeds.extend(msg.omega_e[-1:])
+        else:
+            data.estimates.setdefault(msg.method, []).append((t, msg))
+    for m in data.estimates.values():
+        m.sort(key=lambda x: x[0])
+    data.truth.sort(key=lambda x: x[0])
+    if not data.estimates:
+        data.missing.append("no estimates (no pmsm_param_id/ParameterEstimate topic)")
+    else:
+        absent = [m for m in ORDER if m not in data.estimates]
+        if absent:
+            data.missing.append("no estimates from " + ", ".join(absent))
+    if not data.truth:
+        data.missing.append("no true parameters (/drive/true_parameters): errors and recognition times cannot be computed")
+    return data
+
+
+def truth_at(data, t):
+    """Latest true parameter vector stamped at or before t (or the first one)."""
+    if not data.truth:
+        return None
+    best = data.truth[0][1]
+    for tt, p in data.truth:
+        if tt <= t + 1e-12:
+            best = p
+        else:
+            break
+    return best
+
+
+def values(msg):
+    return (msg.R_s, msg.L_d, msg.L_q, msg.psi_f)
+
+
+def recognition_time(data, trace):
+    """First time after which every parameter flagged identifiable at the end stays within 1 %."""
+    if not trace or not data.truth:
+        return None
+    selected = [i for i in range(4) if trace[-1][1].identifiable[i]]
+    if not selected:
+        return None
+    first_inside = None
+    for t, msg in reversed(trace):
+        true = truth_at(data, t)
+        v = values(msg)
+        if all(abs(v[i] - true[i]) <= TOLERANCE * abs(true[i]) for i in selected):
+            first_inside = t
+        else:
+            break
+    return first_inside
+
+
+def paper_rows(reference, condition):
+    rows = {}
+    if not reference or not condition or not os.path.exists(reference):
+        return rows
+    with open(reference) as f:
+        lines = [l for l in f if l.strip() and not l.startswith("#")]
+    for r in csv.DictReader(lines):
+        if r["condition"] == condition:
+            rows[r["method"].lower()] = r
+    return rows
+
+
+def detect_condition(data):
+    if not data.speeds:
+        return None
+    rpm = sum(data.speeds[-20:]) / len(data.speeds[-20:]) / 4 * 60 / (2 * math.pi)
+    for name, target in (("wc1", 1000.0), ("wc2", 1200.0)):
+        if abs(rpm - target) < 0.02 * target:
+            return name
+    return None
+
+
+def summarize(data):
+    """{method: dict(final values, errors, identifiable, recognition time, fitness)} from the bag."""
+    out = {}
+    for method, trace in data.estimates.items():
+        t, last = trace[-1]
+        true = truth_at(data, t)
+        row = {"values": values(last), "identifiable": list(last.identifiable), "fitness": last.fitness,
+               "samples": last.samples_used, "skipped": last.samples_skipped, "t": t}
+        row["errors"] = [100.0 * (v - p) / p for v, p in zip(row["values"], true)] if true else None
+        row["recognition_time"] = recognition_time(data, trace)
+        out[method] = row
+    return out
+
+
+def fmt(x, spec):
+    return "n/a" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
+
+
+def write_markdown(path, bag_path, data, summary, paper, condition):
+    methods = [m for m in ORDER if m in summary] + sorted(m for m in summary if m not in ORDER)
+    lines = ["# Identification report", "", "Bag: `%s`" % os.path.basename(bag_path), ""]
+    if data.missing:
+        lines += ["**Missing from this bag:** " + "; ".join(data.missing) + ".", ""]
+    if not methods:
+        lines += ["Nothing to tabulate.", ""]
+    else:
+        true = data.truth[-1][1] if data.truth else None
+        lines += ["Final estimates (value, error against truth in %%, identifiable flag). %s" % (
+            "Paper columns: the seed paper's table for %s (mean of 5 runs, T_s = 1e-6 s)." % condition
+            if paper else "No paper condition matches this run."), ""]
+        header = ["Parameter", "truth"] + methods + (["paper " + m for m in methods if m in paper])
+        lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        for i, p in enumerate(PARAMS):
+            cells = ["%s [%s]" % (p, UNITS[p]), fmt(true[i] if true else None, ".6g")]
+            for m in methods:
+                s = summary[m]
+                err = s["errors"][i] if s["errors"] else None
+                cells.append("%s (%s %%)%s" % (fmt(s["values"][i], ".6g"), fmt(err, "+.3f"),
+                                               "" if s["identifiable"][i] else " not identifiable"))
+            for m in methods:
+                if m in paper:
+                    cells.append("%s (%s %%)" % (paper[m][p], paper[m][p + "_err"]))
+            lines.append("| " + " | ".join(cells) + " |")
+        cells = ["recognition time [s]", ""] + [fmt(summary[m]["recognition_time"], ".4f") for m in methods]
+        cells += [paper[m]["recognition_time"] for m in methods if m in paper]
+        lines.append("| " + " | ".join(cells) + " |")
+        cells = ["fitness [A^2]", ""] + [fmt(summary[m]["fitness"], ".4g") for m in methods]
+        cells += [paper[m]["fitness"] or "n/a" for m in methods if m in paper]
+        lines.append("| " + " | ".join(cells) + " |")
+        cells = ["samples used / skipped", ""] + ["%d / %d" % (summary[m]["samples"], summary[m]["skipped"]) for m in methods]
+        cells += ["" for m in methods if m in paper]
+        lines.append("| " + " | ".join(cells) + " |")
+        lines += ["", "Recognition time: the first time after which every parameter flagged identifiable at the end "
+                  "stays within 1 % of truth (doc/algorithm.md). The paper's fitness is on its own scale.", ""]
+    lines += ["Figures: " + ", ".join("[%s](%s.png)" % (p, p) for p in PARAMS) + ", [fitness](fitness.png)", ""]
+    with open(path, "w") as f:
+        f.write("\n".join(lines))
+
+
+def draw(out_dir, data):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    written = []
+    for i, p in enumerate(PARAMS):
+        fig, ax = plt.subplots(figsize=(8, 4.2), dpi=100)
+        if data.truth:
+            ax.step([t for t, _ in data.truth], [v[i] for _, v in data.truth], where="post", color="black",
+                    linewidth=2.0, label="truth")
+        for m in [m for m in ORDER if m in data.estimates] + [m for m in data.estimates if m not in ORDER]:
+            trace = data.estimates[m]
+            ts = [t for t, _ in trace]
+            vs = [values(msg)[i] for _, msg in trace]
+            ok = [msg.identifiable[i] for _, msg in trace]
+            ax.plot(ts, vs, color=COLORS.get(m), linewidth=1.2, label=m)
+            # parameters the data do not determine: shown as grey dots on top
+            bad = [(t, v) for t, v, o in zip(ts, vs, ok) if not o]
+            if bad:
+                ax.plot([b[0] for b in bad], [b[1] for b in bad], ".", color="grey", markersize=2)
+        if data.truth:
+            ref = data.truth[-1][1][i]
+            ax.set_ylim(ref * 0.8, ref * 1.2)
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("%s [%s]" % (p, UNITS[p]))
+        ax.set_title("%s: estimates against truth (grey dots: not identifiable)" % p)
+        ax.grid(True, alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc="upper right", fontsize=8)
+        fig.tight_layout()
+        name = os.path.join(out_dir, p + ".png")
+        fig.savefig(name)
+        plt.close(fig)
+        written.append(name)
+    fig, ax = plt.subplots(figsize=(8, 4.2), dpi=100)
+    for m in [m for m in ORDER if m in data.estimates]:
+        trace = [(t, msg.fitness) for t, msg in data.estimates[m] if math.isfinite(msg.fitness) and msg.fitness > 0]
+        if trace:
+            ax.semilogy([t for t, _ in trace], [f for _, f in trace], color=COLORS.get(m), linewidth=1.0, label=m)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("fitness [A^2]")
+    ax.set_title("Fitness (mean squared block current error) at each method's estimate")
+    ax.grid(True, alpha=0.3)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    name = os.path.join(out_dir, "fitness.png")
+    fig.savefig(name)
+    plt.close(fig)
+    written.append(name)
+    return written
+
+
+def main(argv=None):
+    here = os.path.dirname(os.path.abspath(__file__))
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("bag")
+    parser.add_argument("--out", help="output folder (default: BAG without .bag, plus _report)")
+    parser.add_argument("--reference", default=os.path.join(here, "..", "config", "reference", "paper_tables.csv"))
+    parser.add_argument("--condition", default="auto", help="wc1, wc2, auto (from the speed) or none")
+    args = parser.parse_args(argv)
+    if not os.path.isfile(args.bag):
+        raise SystemExit("error: %s: no such file" % args.bag)
+    data = read_bag(args.bag)
+    out = args.out or os.path.splitext(args.bag)[0] + "_report"
+    os.makedirs(out, exist_ok=True)
+    condition = detect_condition(data) if args.condition == "auto" else (None if args.condition == "none" else args.condition)
+    summary = summarize(data)
+    draw(out, data)
+    report = os.path.join(out, "report.md")
+    write_markdown(report, args.bag, data, summary, paper_rows(args.reference, condition), condition)
+    for m in data.missing:
+        print("warning: %s: %s" % (args.bag, m), file=sys.stderr)
+    print("report: " + report)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
