@@ -14,7 +14,9 @@
 // evaluating it costs the same for any window length.
 #pragma once
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
+#include <limits>
 #include <cstdint>
 #include <vector>
 
@@ -44,7 +46,27 @@ class HorizonStatistics {
   void reset();
 
   /// Mean squared block residual r_d^2 + r_q^2 [A^2] for parameters p; +inf before any block.
-  double fitness(const ParameterVector& p) const;
+  /// Inline: the swarm calls it 20 times per sample.
+  double fitness(const ParameterVector& p) const {
+    if (weight_ <= 0) return std::numeric_limits<double>::infinity();
+    const double inv = 1.0 / (p[kLd] * p[kLq]);  // one division for both 1/L_d and 1/L_q
+    const double inv_Ld = p[kLq] * inv, inv_Lq = p[kLd] * inv;
+    const double wd[4] = {1.0, p[kRs] * inv_Ld, -p[kLq] * inv_Ld, -inv_Ld};
+    const double wq[5] = {1.0, p[kRs] * inv_Lq, p[kLd] * inv_Lq, -inv_Lq, p[kPsiF] * inv_Lq};
+    // Quadratic forms on the upper triangles (the lower ones are not maintained).
+    double f = 0.0;
+    for (int i = 0; i < 4; ++i) {
+      double row = 0.5 * S_d_(i, i) * wd[i];
+      for (int j = i + 1; j < 4; ++j) row += S_d_(i, j) * wd[j];
+      f += wd[i] * row;
+    }
+    for (int i = 0; i < 5; ++i) {
+      double row = 0.5 * S_q_(i, i) * wq[i];
+      for (int j = i + 1; j < 5; ++j) row += S_q_(i, j) * wq[j];
+      f += wq[i] * row;
+    }
+    return std::max(0.0, 2.0 * f / weight_);
+  }
   /// Fisher information (up to the residual variance) of {R_s, L_d, L_q, psi_f} at p: the
   /// Gauss-Newton matrix sum(grad r grad r^T) of the window.
   Eigen::Matrix4d information(const ParameterVector& p) const;
@@ -68,6 +90,7 @@ class HorizonStatistics {
   Eigen::Matrix4d S_d_ = Eigen::Matrix4d::Zero();
   Eigen::Matrix<double, 5, 5> S_q_ = Eigen::Matrix<double, 5, 5>::Zero();
   double weight_ = 0.0;
+  double lambda_dt_ = -1.0, lambda_ = 1.0;  // forgetting factor cached for the last period seen
   std::uint64_t blocks_ = 0;
   BlockD last_d_ = BlockD::Zero();
   BlockQ last_q_ = BlockQ::Zero();

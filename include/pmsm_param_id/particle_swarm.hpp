@@ -2,6 +2,7 @@
 // acceptance and temperature policy (Eq. 6-8, 15-17).
 #pragma once
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <limits>
@@ -18,7 +19,15 @@ namespace pmsm_param_id {
 struct ParticleTemperature {
   double T = 0.0;         ///< current temperature [-] (fitness differences are normalised, see doc)
   int accepted_worse = 0; ///< d of Eq. (8): worse (or equal) positions accepted since the reset
+  double c2_power = 1.0;  ///< C2^d, kept incrementally (pow() per acceptance was a third of the cost)
 };
+
+/// Metropolis test exp(-x) > r for x >= 0 without calling exp() when the answer is already known:
+/// exp(-x) < 4.2e-18 for x > 40, and r is a multiple of 2^-53 (1.1e-16), so only r = 0 passes there.
+inline bool metropolisAccepts(double x, double r) {
+  if (x > 40.0) return r < 4.2e-18 && std::exp(-x) > r;
+  return std::exp(-x) > r;
+}
 
 class AcceptancePolicy {
  public:
@@ -49,7 +58,7 @@ class MetropolisAcceptance : public AcceptancePolicy {
  public:
   MetropolisAcceptance(double T1, double C1) : T1_(T1), C1_(C1) {}
   std::string name() const override { return "sapso"; }
-  void reset(ParticleTemperature& th) const override { th = {T1_, 0}; }
+  void reset(ParticleTemperature& th) const override { th = {T1_, 0, 1.0}; }
   bool accept(double delta, double r, ParticleTemperature& th) const override;
   void endIteration(ParticleTemperature& th) const override { th.T *= C1_; }
 
@@ -65,7 +74,7 @@ class BackfireDoubleAnnealing : public AcceptancePolicy {
   BackfireDoubleAnnealing(double T1, double T2, double C1, double C2, double zero_delta)
       : T1_(T1), T2_(T2), C1_(C1), C2_(C2), zero_delta_(zero_delta) {}
   std::string name() const override { return "fbdapso"; }
-  void reset(ParticleTemperature& th) const override { th = {T1_, 0}; }
+  void reset(ParticleTemperature& th) const override { th = {T1_, 0, 1.0}; }
   bool accept(double delta, double r, ParticleTemperature& th) const override;
   void endIteration(ParticleTemperature&) const override {}
 
@@ -139,11 +148,13 @@ void ParticleSwarm::iterate(const F& f) {
   if (!evaluated_) evaluateAll(f);
   const double w = s_.w_max - (s_.w_max - s_.w_min) * static_cast<double>(k_) / s_.reset_iterations;
   const double scale = std::max(std::abs(f_gbest_), 1e-300);  // Delta f is relative to the best
+  const bool thermal = policy_->hasTemperature();
   Point best = gbest_;
   for (Particle& p : swarm_) {
     Point x_new, v_new;
     for (int d = 0; d < kParameterCount; ++d) {
-      const double r1 = rng_.uniform(), r2 = rng_.uniform();
+      double r1, r2;
+      rng_.uniformPair(r1, r2);
       double v = w * p.v[d] + s_.c1 * r1 * (p.pbest[d] - p.x[d]) + s_.c2 * r2 * (gbest_[d] - p.x[d]);
       v = std::min(std::max(v, -s_.v_max), s_.v_max);
       double x = p.x[d] + v;
@@ -155,7 +166,7 @@ void ParticleSwarm::iterate(const F& f) {
     const double f_new = f(toParameters(x_new));
     ++evaluations_;
     const double delta = (f_new - p.f) / scale;
-    const double r = policy_->hasTemperature() && delta >= 0 ? rng_.uniform() : 0.0;
+    const double r = thermal && delta >= 0 ? rng_.uniform() : 0.0;
     if (policy_->accept(delta, r, p.th)) {
       p.x = x_new;
       p.v = v_new;

@@ -18,8 +18,17 @@ class FastRandom {
       s = z ^ (z >> 31);
     }
   }
-  /// Uniform in [0, 1).
-  double uniform() {
+  /// Two independent uniforms in [0, 1) with 26-bit resolution from one draw (Eq. 4's r1, r2).
+  void uniformPair(double& a, double& b) {
+    const std::uint64_t x = next();
+    a = static_cast<double>(x >> 38) * 0x1.0p-26;
+    b = static_cast<double>((x >> 12) & 0x3FFFFFFull) * 0x1.0p-26;
+  }
+  /// Uniform in [0, 1) with 53-bit resolution.
+  double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
+
+ private:
+  std::uint64_t next() {
     const std::uint64_t result = s_[0] + s_[3];
     const std::uint64_t t = s_[1] << 17;
     s_[2] ^= s_[0];
@@ -28,10 +37,8 @@ class FastRandom {
     s_[0] ^= s_[3];
     s_[2] ^= t;
     s_[3] = (s_[3] << 45) | (s_[3] >> 19);
-    return static_cast<double>(result >> 11) * 0x1.0p-53;
+    return result;
   }
-
- private:
   std::uint64_t s_[4];
 };
 

@@ -54,7 +54,11 @@ bool HorizonStatistics::add(const Sample& s) {
   last_d_ << c.i_d - a.i_d, c.I_d - a.I_d, c.W_d - a.W_d, c.U_d - a.U_d;
   last_q_ << c.i_q - a.i_q, c.I_q - a.I_q, c.W_q - a.W_q, c.U_q - a.U_q, c.Om - a.Om;
   const double dt = c.t - ring_[(head_ + count_ - 2) % cap].t;
-  const double lambda = std::exp(-dt / settings_.time_constant);
+  if (dt != lambda_dt_) {  // the sampling period rarely changes: one exp() per change, not per sample
+    lambda_dt_ = dt;
+    lambda_ = std::exp(-dt / settings_.time_constant);
+  }
+  const double lambda = lambda_;
   S_d_ *= lambda;
   S_q_ *= lambda;
   S_d_.selfadjointView<Eigen::Upper>().rankUpdate(last_d_);
@@ -70,27 +74,6 @@ bool HorizonStatistics::add(const Sample& s) {
     }
   }
   return true;
-}
-
-double HorizonStatistics::fitness(const ParameterVector& p) const {
-  if (weight_ <= 0) return std::numeric_limits<double>::infinity();
-  const double inv_Ld = 1.0 / p[kLd], inv_Lq = 1.0 / p[kLq];
-  const double wd[4] = {1.0, p[kRs] * inv_Ld, -p[kLq] * inv_Ld, -inv_Ld};
-  const double wq[5] = {1.0, p[kRs] * inv_Lq, p[kLd] * inv_Lq, -inv_Lq, p[kPsiF] * inv_Lq};
-  // Quadratic forms on the upper triangles (the lower ones are not maintained).
-  double fd = 0.0;
-  for (int i = 0; i < 4; ++i) {
-    double row = 0.5 * S_d_(i, i) * wd[i];
-    for (int j = i + 1; j < 4; ++j) row += S_d_(i, j) * wd[j];
-    fd += wd[i] * row;
-  }
-  double fq = 0.0;
-  for (int i = 0; i < 5; ++i) {
-    double row = 0.5 * S_q_(i, i) * wq[i];
-    for (int j = i + 1; j < 5; ++j) row += S_q_(i, j) * wq[j];
-    fq += wq[i] * row;
-  }
-  return std::max(0.0, 2.0 * (fd + fq) / weight_);
 }
 
 Eigen::Matrix4d HorizonStatistics::information(const ParameterVector& p) const {

@@ -7,7 +7,7 @@ namespace pmsm_param_id {
 
 bool MetropolisAcceptance::accept(double delta, double r, ParticleTemperature& th) const {
   if (delta <= 0.0) return true;  // Eq. (16)
-  return std::exp(-delta / th.T) > r;
+  return metropolisAccepts(delta / th.T, r);
 }
 
 bool BackfireDoubleAnnealing::accept(double delta, double r, ParticleTemperature& th) const {
@@ -16,9 +16,10 @@ bool BackfireDoubleAnnealing::accept(double delta, double r, ParticleTemperature
     return true;
   }
   const double d = delta == 0.0 ? zero_delta_ : delta;  // Eq. (17)
-  if (std::exp(-d / th.T) > r) {
+  if (metropolisAccepts(d / th.T, r)) {
     ++th.accepted_worse;  // tempering (Eq. 8), then general annealing (step 9)
-    th.T = C1_ * (th.T + std::pow(C2_, th.accepted_worse) * T2_);
+    th.c2_power *= C2_;   // = C2^d
+    th.T = C1_ * (th.T + th.c2_power * T2_);
     return true;
   }
   return false;

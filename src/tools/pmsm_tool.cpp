@@ -328,6 +328,39 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
   return 0;
 }
 
+// ---------------------------------------------------------------------------------------------
+// perf: samples per second of wall time, one core, over a recorded run
+int runPerf(const std::string& scenario_path, const std::string& methods_arg, const std::string& config_path,
+            int repeat, const std::string& json_out) {
+  const Scenario scenario = loadScenario(scenario_path);
+  const std::vector<SimulatedSample> data = simulate(scenario);
+  const IdentifierConfig base = configFor(config_path, "", -1);
+  json records = json::array();
+  std::printf("%-9s %14s %12s %14s %14s\n", "method", "samples/s", "ns/sample", "RT x @10 kHz", "RT x @1 MHz");
+  for (const std::string& method : splitList(methods_arg)) {
+    if (!isKnownMethod(method)) throw ConfigError("--methods: unknown method '" + method + "'");
+    IdentifierConfig c = base;
+    c.method = method;
+    double wall = 0.0;
+    std::uint64_t samples = 0;
+    for (int r = 0; r < repeat; ++r) {
+      c.seed = static_cast<std::uint64_t>(r) + 1;
+      auto id = makeIdentifier(c);
+      const auto t0 = std::chrono::steady_clock::now();
+      for (const auto& s : data) id->process(s.sample);
+      wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      samples += data.size();
+    }
+    const double rate = static_cast<double>(samples) / wall;
+    std::printf("%-9s %14.0f %12.1f %14.1f %14.2f\n", method.c_str(), rate, 1e9 / rate, rate / 1e4, rate / 1e6);
+    records.push_back({{"method", method}, {"samples_per_s", rate}, {"ns_per_sample", 1e9 / rate},
+                       {"realtime_factor_10khz", rate / 1e4}, {"realtime_factor_1mhz", rate / 1e6},
+                       {"samples", samples}, {"scenario", scenario.name}});
+  }
+  if (!json_out.empty()) writeJson(json_out, records);
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -361,11 +394,20 @@ int main(int argc, char** argv) {
   bench->add_option("--reference", reference, "the paper's tables as CSV")->required();
   bench->add_option("--threads", threads, "worker threads (default 2)");
 
+  int repeat = 20;
+  auto* perf = app.add_subcommand("perf", "samples/s of every method on one core over a recorded run");
+  perf->add_option("--scenario", scenario, "scenario YAML (recorded once, then replayed)")->required();
+  perf->add_option("--methods", methods, "comma-separated list");
+  perf->add_option("--config", config, "identifier YAML");
+  perf->add_option("--repeat", repeat, "passes over the recording (default 20)");
+  perf->add_option("--json", json_out, "one record per method");
+
   CLI11_PARSE(app, argc, argv);
   try {
     if (*sim) return runSimulate(scenario, csv, seed, duration);
     if (*ident) return runIdentify(csv, method, config, seed, json_out);
     if (*bench) return runBench(scenario, seeds, methods, config, json_out, reference, threads);
+    if (*perf) return runPerf(scenario, methods, config, std::max(1, repeat), json_out);
   } catch (const ConfigError& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return 2;

@@ -1,0 +1,100 @@
+// Microbenchmarks (Google Benchmark): the pieces that run per sample.
+#include <benchmark/benchmark.h>
+
+#include "pmsm_param_id/drive_simulator.hpp"
+#include "pmsm_param_id/horizon_statistics.hpp"
+#include "pmsm_param_id/online_identifier.hpp"
+
+using namespace pmsm_param_id;
+
+namespace {
+const std::vector<SimulatedSample>& recording() {
+  static const std::vector<SimulatedSample> data = [] {
+    Scenario s = loadScenario(std::string(PMSM_SOURCE_DIR) + "/config/scenarios/wc1_drive.yaml");
+    DriveSimulator sim(s);
+    std::vector<SimulatedSample> out;
+    while (!sim.done()) out.push_back(sim.step());
+    return out;
+  }();
+  return data;
+}
+HorizonStatistics filledStatistics() {
+  HorizonStatistics stats;
+  for (const auto& s : recording()) stats.add(s.sample);
+  return stats;
+}
+}  // namespace
+
+// One fitness evaluation over the default window (independent of its length).
+static void BM_FitnessEvaluation(benchmark::State& state) {
+  const HorizonStatistics stats = filledStatistics();
+  ParameterVector p{2.9, 0.0046, 0.0134, 0.178};
+  for (auto _ : state) {
+    p[kRs] += 1e-12;
+    benchmark::DoNotOptimize(stats.fitness(p));
+  }
+}
+BENCHMARK(BM_FitnessEvaluation);
+
+// Adding one sample to the horizon statistics (block integrals + rank-1 updates).
+static void BM_StatisticsUpdate(benchmark::State& state) {
+  HorizonStatistics stats;
+  const auto& data = recording();
+  std::size_t k = 0;
+  double offset = 0;
+  for (auto _ : state) {
+    Sample s = data[k].sample;
+    s.t += offset;
+    stats.add(s);
+    if (++k == data.size()) {
+      k = 0;
+      offset += data.back().sample.t + 1e-4;
+    }
+  }
+}
+BENCHMARK(BM_StatisticsUpdate);
+
+// One swarm iteration (20 particles: 20 evaluations, velocity and acceptance updates).
+static void BM_SwarmIteration(benchmark::State& state, const char* method) {
+  const HorizonStatistics stats = filledStatistics();
+  IdentifierConfig c;
+  c.method = method;
+  std::shared_ptr<AcceptancePolicy> policy;
+  if (c.method == "pso") policy = std::make_shared<AlwaysAccept>();
+  if (c.method == "sapso") policy = std::make_shared<MetropolisAcceptance>(c.sapso_T1, c.sapso_C1);
+  if (c.method == "fbdapso")
+    policy = std::make_shared<BackfireDoubleAnnealing>(c.fbdapso_T1, c.fbdapso_T2, c.fbdapso_C1, c.fbdapso_C2,
+                                                       c.fbdapso_zero_delta);
+  ParticleSwarm swarm(c.swarm, policy, c.lower, c.upper, 1);
+  const auto f = [&stats](const ParameterVector& p) { return stats.fitness(p); };
+  for (auto _ : state) swarm.iterate(f);
+}
+BENCHMARK_CAPTURE(BM_SwarmIteration, pso, "pso");
+BENCHMARK_CAPTURE(BM_SwarmIteration, sapso, "sapso");
+BENCHMARK_CAPTURE(BM_SwarmIteration, fbdapso, "fbdapso");
+
+// One full online update per method (what the identifier node pays per sample).
+static void BM_OnlineUpdate(benchmark::State& state, const char* method) {
+  IdentifierConfig c;
+  c.method = method;
+  auto id = makeIdentifier(c);
+  const auto& data = recording();
+  std::size_t k = 0;
+  double offset = 0;
+  for (auto _ : state) {
+    Sample s = data[k].sample;
+    s.t += offset;
+    id->process(s);
+    if (++k == data.size()) {
+      k = 0;
+      offset += data.back().sample.t + 1e-4;
+    }
+  }
+}
+BENCHMARK_CAPTURE(BM_OnlineUpdate, fbdapso, "fbdapso");
+BENCHMARK_CAPTURE(BM_OnlineUpdate, sapso, "sapso");
+BENCHMARK_CAPTURE(BM_OnlineUpdate, pso, "pso");
+BENCHMARK_CAPTURE(BM_OnlineUpdate, ekf, "ekf");
+BENCHMARK_CAPTURE(BM_OnlineUpdate, rls, "rls");
+
+BENCHMARK_MAIN();
