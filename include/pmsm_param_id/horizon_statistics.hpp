@@ -75,6 +75,9 @@ class HorizonStatistics {
   double weight() const { return weight_; }               ///< sum of forgetting weights [-]
   std::uint64_t blocks() const { return blocks_; }        ///< blocks added since reset
   int horizonSamples() const { return horizon_samples_; } ///< M, fixed by the first period seen
+  /// The forgotten sums S_d = sum lambda^n z_d z_d^T and S_q (full symmetric matrices).
+  Eigen::Matrix4d matrixD() const { return S_d_.selfadjointView<Eigen::Upper>(); }
+  Eigen::Matrix<double, 5, 5> matrixQ() const { return S_q_.selfadjointView<Eigen::Upper>(); }
   const BlockD& lastBlockD() const { return last_d_; }
   const BlockQ& lastBlockQ() const { return last_q_; }
 
