@@ -21,6 +21,7 @@
 #include "pmsm_param_id/drive_simulator.hpp"
 #include "pmsm_param_id/horizon_statistics.hpp"
 #include "pmsm_param_id/identifier_config.hpp"
+#include "pmsm_param_id/identifiers.hpp"
 #include "pmsm_param_id/metrics.hpp"
 
 using namespace pmsm_param_id;
@@ -179,13 +180,9 @@ int main(int argc, char** argv) {
     // Ours: the online engine iterated on the fixed fitness, budget / 20 iterations.
     for (const std::string m : {"pso", "sapso", "fbdapso"}) {
       auto t = fresh();
-      std::shared_ptr<AcceptancePolicy> policy;
-      if (m == "pso") policy = std::make_shared<AlwaysAccept>();
-      if (m == "sapso") policy = std::make_shared<MetropolisAcceptance>(config.sapso_T1, config.sapso_C1);
-      if (m == "fbdapso")
-        policy = std::make_shared<BackfireDoubleAnnealing>(config.fbdapso_T1, config.fbdapso_T2, config.fbdapso_C1,
-                                                           config.fbdapso_C2, config.fbdapso_zero_delta);
-      ParticleSwarm swarm(config.swarm, policy, config.lower, config.upper, static_cast<std::uint64_t>(seed));
+      IdentifierConfig c = config;
+      c.method = m;
+      ParticleSwarm swarm(c.swarm, makeAcceptancePolicy(c), c.lower, c.upper, static_cast<std::uint64_t>(seed));
       Tracker& tr = *t;
       const auto f = [&tr](const ParameterVector& p) { return tr(p); };
       while (tr.evals < budget) swarm.iterate(f);

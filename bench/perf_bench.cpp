@@ -3,6 +3,7 @@
 
 #include "pmsm_param_id/drive_simulator.hpp"
 #include "pmsm_param_id/horizon_statistics.hpp"
+#include "pmsm_param_id/identifiers.hpp"
 #include "pmsm_param_id/online_identifier.hpp"
 
 using namespace pmsm_param_id;
@@ -18,6 +19,24 @@ const std::vector<SimulatedSample>& recording() {
   }();
   return data;
 }
+/// The recording over and over, with stamps that keep increasing (one pass after the other).
+class EndlessRecording {
+ public:
+  Sample next() {
+    const auto& data = recording();
+    Sample s = data[k_].sample;
+    s.t += offset_;
+    if (++k_ == data.size()) {
+      k_ = 0;
+      offset_ += data.back().sample.t + 1e-4;
+    }
+    return s;
+  }
+
+ private:
+  std::size_t k_ = 0;
+  double offset_ = 0.0;
+};
 HorizonStatistics filledStatistics() {
   HorizonStatistics stats;
   for (const auto& s : recording()) stats.add(s.sample);
@@ -39,18 +58,8 @@ BENCHMARK(BM_FitnessEvaluation);
 // Adding one sample to the horizon statistics (block integrals + rank-1 updates).
 static void BM_StatisticsUpdate(benchmark::State& state) {
   HorizonStatistics stats;
-  const auto& data = recording();
-  std::size_t k = 0;
-  double offset = 0;
-  for (auto _ : state) {
-    Sample s = data[k].sample;
-    s.t += offset;
-    stats.add(s);
-    if (++k == data.size()) {
-      k = 0;
-      offset += data.back().sample.t + 1e-4;
-    }
-  }
+  EndlessRecording samples;
+  for (auto _ : state) stats.add(samples.next());
 }
 BENCHMARK(BM_StatisticsUpdate);
 
@@ -59,13 +68,7 @@ static void BM_SwarmIteration(benchmark::State& state, const char* method) {
   const HorizonStatistics stats = filledStatistics();
   IdentifierConfig c;
   c.method = method;
-  std::shared_ptr<AcceptancePolicy> policy;
-  if (c.method == "pso") policy = std::make_shared<AlwaysAccept>();
-  if (c.method == "sapso") policy = std::make_shared<MetropolisAcceptance>(c.sapso_T1, c.sapso_C1);
-  if (c.method == "fbdapso")
-    policy = std::make_shared<BackfireDoubleAnnealing>(c.fbdapso_T1, c.fbdapso_T2, c.fbdapso_C1, c.fbdapso_C2,
-                                                       c.fbdapso_zero_delta);
-  ParticleSwarm swarm(c.swarm, policy, c.lower, c.upper, 1);
+  ParticleSwarm swarm(c.swarm, makeAcceptancePolicy(c), c.lower, c.upper, 1);
   const auto f = [&stats](const ParameterVector& p) { return stats.fitness(p); };
   for (auto _ : state) swarm.iterate(f);
 }
@@ -78,18 +81,8 @@ static void BM_OnlineUpdate(benchmark::State& state, const char* method) {
   IdentifierConfig c;
   c.method = method;
   auto id = makeIdentifier(c);
-  const auto& data = recording();
-  std::size_t k = 0;
-  double offset = 0;
-  for (auto _ : state) {
-    Sample s = data[k].sample;
-    s.t += offset;
-    id->process(s);
-    if (++k == data.size()) {
-      k = 0;
-      offset += data.back().sample.t + 1e-4;
-    }
-  }
+  EndlessRecording samples;
+  for (auto _ : state) id->process(samples.next());
 }
 BENCHMARK_CAPTURE(BM_OnlineUpdate, fbdapso, "fbdapso");
 BENCHMARK_CAPTURE(BM_OnlineUpdate, sapso, "sapso");

@@ -8,6 +8,9 @@
 
 namespace pmsm_param_id {
 
+/// The acceptance policy that config.method names (pso, sapso, fbdapso) with the config's constants.
+std::shared_ptr<const AcceptancePolicy> makeAcceptancePolicy(const IdentifierConfig& config);
+
 /// PSO, SAPSO or FBDAPSO on the horizon fitness: iterations_per_sample swarm iterations per
 /// sample once the first block exists (the paper's "identify every sampling point").
 class SwarmIdentifier : public OnlineIdentifier {

@@ -1,21 +1,22 @@
 #include "pmsm_param_id/identifiers.hpp"
 
+#include <stdexcept>
+
 namespace pmsm_param_id {
 
-namespace {
-std::shared_ptr<const AcceptancePolicy> policyFor(const IdentifierConfig& c) {
+std::shared_ptr<const AcceptancePolicy> makeAcceptancePolicy(const IdentifierConfig& c) {
   if (c.method == "sapso") return std::make_shared<MetropolisAcceptance>(c.sapso_T1, c.sapso_C1);
   if (c.method == "fbdapso")
     return std::make_shared<BackfireDoubleAnnealing>(c.fbdapso_T1, c.fbdapso_T2, c.fbdapso_C1, c.fbdapso_C2,
                                                      c.fbdapso_zero_delta);
-  return std::make_shared<AlwaysAccept>();
+  if (c.method == "pso") return std::make_shared<AlwaysAccept>();
+  throw std::invalid_argument("no acceptance policy for method '" + c.method + "'");
 }
-}  // namespace
 
 SwarmIdentifier::SwarmIdentifier(const IdentifierConfig& config) : OnlineIdentifier(config) { restart(); }
 
 void SwarmIdentifier::restart() {
-  swarm_ = std::make_unique<ParticleSwarm>(config_.swarm, policyFor(config_), config_.lower, config_.upper,
+  swarm_ = std::make_unique<ParticleSwarm>(config_.swarm, makeAcceptancePolicy(config_), config_.lower, config_.upper,
                                            config_.seed, &config_.initial);
 }
 
