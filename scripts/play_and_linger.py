@@ -25,13 +25,16 @@ def main():
     parser.add_argument("--linger", type=float, default=2.0, help="seconds to stay up after the bag [s]")
     parser.add_argument("--wait-subscribers", type=int, default=0,
                         help="wait (at most 20 s) for this many subscribers of /drive/samples_batch")
+    parser.add_argument("--wait-topic", action="append", default=[],
+                        help="also wait (same limit) until this topic has a subscriber, e.g. a recorder's")
     parser.add_argument("play_args", nargs=argparse.REMAINDER)
     args, _ = parser.parse_known_args(rospy_argv_filter(sys.argv[1:]))
     play_args = [a for a in args.play_args if a != "--"]
     master = rosgraph.Master("/play_and_linger")
     deadline = time.time() + 20.0
-    while args.wait_subscribers and time.time() < deadline:
-        if subscribers(master, "/drive/samples_batch") >= args.wait_subscribers:
+    while time.time() < deadline:
+        if subscribers(master, "/drive/samples_batch") >= args.wait_subscribers and all(
+                subscribers(master, t) > 0 for t in args.wait_topic):
             break
         time.sleep(0.1)
     time.sleep(1.0)
