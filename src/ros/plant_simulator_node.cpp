@@ -7,9 +7,12 @@
 //   ~decimation (int)              every N-th sample also goes to ~samples (for humans, rostopic echo)
 //   ~linger (double, s)            stay up this long after the last sample (subscribers drain)
 //   ~wait_for_subscribers (int)    wait (at most 20 s) until this many nodes listen to samples_batch
+//   ~publish_clock (bool)          own /clock: simulated time = 1 s + drive time, published per batch
+//                                  (set /use_sim_time true for the other nodes)
 // Publishes ~samples_batch (DriveSampleBatch), ~samples (DriveSample), ~true_parameters
 // (ElectricalParameters, once per batch). Stamps start at the node's start time.
 #include <ros/ros.h>
+#include <rosgraph_msgs/Clock.h>
 
 #include "pmsm_param_id/config_error.hpp"
 #include "pmsm_param_id/drive_simulator.hpp"
@@ -44,6 +47,9 @@ int main(int argc, char** argv) {
   ros::Publisher pub_batch = pnh.advertise<DriveSampleBatch>("samples_batch", 1000);
   ros::Publisher pub_sample = pnh.advertise<DriveSample>("samples", 1000);
   ros::Publisher pub_truth = pnh.advertise<ElectricalParameters>("true_parameters", 100, true);
+  const bool publish_clock = pnh.param("publish_clock", false);
+  ros::Publisher pub_clock;
+  if (publish_clock) pub_clock = ros::NodeHandle().advertise<rosgraph_msgs::Clock>("/clock", 10);
   const int wait_for = pnh.param("wait_for_subscribers", 0);
   const ros::WallTime wait_start = ros::WallTime::now();
   while (ros::ok() && static_cast<int>(pub_batch.getNumSubscribers()) < wait_for &&
@@ -55,7 +61,8 @@ int main(int argc, char** argv) {
 
   DriveSimulator sim(scenario);
   const double Ts = scenario.drive.sample_period;
-  const ros::Time start = ros::Time::now();
+  // Owning /clock, time starts at 1 s (ros::Time(0) means "unset" to many tools).
+  const ros::Time start = publish_clock ? ros::Time(1.0) : ros::Time::now();
   const ros::WallTime wall_start = ros::WallTime::now();
   ROS_INFO("simulating '%s': %.3g s at T_s = %.3g s, batches of %d, real-time factor %g", scenario.name.c_str(),
            scenario.duration, Ts, batch, realtime);
@@ -90,6 +97,11 @@ int main(int argc, char** argv) {
     published += msg.u_d.size();
     pub_batch.publish(msg);
     pub_truth.publish(toMessage(truth, msg.header.stamp));
+    if (publish_clock) {
+      rosgraph_msgs::Clock clock;
+      clock.clock = start + ros::Duration(static_cast<double>(sim.sampleIndex()) * Ts);
+      pub_clock.publish(clock);
+    }
     if (realtime > 0) {
       const double due = static_cast<double>(sim.sampleIndex()) * Ts / realtime;
       const double ahead = due - (ros::WallTime::now() - wall_start).toSec();

@@ -175,6 +175,41 @@ class Report(unittest.TestCase):
         self.assertIn("not a readable bag", r.stderr)
 
 
+class Tools(unittest.TestCase):
+    def test_identify_reports_bad_rows_by_line_and_keeps_the_rest(self):
+        tmp = tempfile.mkdtemp(prefix="pmsm_identify_")
+        csv = os.path.join(tmp, "log.csv")
+        scenario = os.path.join(os.path.dirname(__file__), "..", "..", "config", "scenarios", "wc1_drive.yaml")
+        self.assertEqual(tool("pmsm_tool", "simulate", "--scenario", scenario, "--csv", csv, "--duration", "0.2").returncode, 0)
+        with open(csv) as f:
+            lines = f.read().splitlines()
+        cells = lines[101].split(",")
+        cells[4] = "nan"                     # line 102: a non-finite current
+        lines[101] = ",".join(cells)
+        lines.insert(1500, lines[1200])      # line 1501: time goes back (the log restarts)
+        with open(csv, "w") as f:
+            f.write("\n".join(lines) + "\n")
+        out = os.path.join(tmp, "e.json")
+        r = tool("pmsm_tool", "identify", "--csv", csv, "--method", "fbdapso", "--json", out)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn(csv + ":102: skipped: non-finite value", r.stderr)
+        self.assertIn(csv + ":1501: time went backwards: identifier reset", r.stderr)
+        with open(out) as f:
+            e = json.load(f)
+        self.assertEqual(e["skipped"], 1)
+        self.assertEqual(e["time_resets"], 1)
+        self.assertEqual(e["samples"], 2000)  # 2001 rows, one skipped
+
+    def test_too_few_samples_for_the_horizon_is_a_clear_error(self):
+        tmp = tempfile.mkdtemp(prefix="pmsm_identify_")
+        csv = os.path.join(tmp, "short.csv")
+        with open(csv, "w") as f:
+            f.write("t,u_d,u_q,i_d,i_q,omega_e\n" + "".join("%g,1,2,3,4,5\n" % (k * 1e-4) for k in range(10)))
+        r = tool("pmsm_tool", "identify", "--csv", csv, "--method", "rls")
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("only 10 usable samples: fewer than the fitness horizon", r.stderr)
+
+
 class BadParameters(unittest.TestCase):
     def test_unknown_method_stops_the_node_with_one_line_naming_the_parameter(self):
         master = subprocess.Popen(["rosmaster", "--core", "-p", str(PORT + 1)], stdout=subprocess.DEVNULL,
