@@ -83,8 +83,8 @@ Estimate OnlineIdentifier::estimate() const {
   e.relative_std.fill(std::numeric_limits<double>::infinity());
   bool physical = true;
   for (double v : e.parameters) physical = physical && std::isfinite(v) && v > 0;
-  if (!stats_.hasBlocks() || !physical) {
-    e.fitness = stats_.hasBlocks() && physical ? stats_.fitness(e.parameters) : std::numeric_limits<double>::quiet_NaN();
+  if (!stats_.hasBlocks() || !physical) {  // no data yet, or an estimate the model cannot evaluate
+    e.fitness = std::numeric_limits<double>::quiet_NaN();
     return e;
   }
   e.fitness = stats_.fitness(e.parameters);

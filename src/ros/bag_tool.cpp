@@ -120,7 +120,7 @@ int main(int argc, char** argv) {
     ros::Time::init();
     if (cmd == "csv2bag") return csv2bag(argv[2], argv[3], argc > 4 ? std::stoul(argv[4]) : 100);
     if (cmd == "bag2csv") return bag2csv(argv[2], argv[3], argc > 4 ? argv[4] : kBatchTopic);
-  } catch (const InputError& e) {
+  } catch (const UserError& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return 2;
   } catch (const std::exception& e) {

@@ -1,6 +1,7 @@
 // pmsm_tool: simulate a drive, identify from a log, benchmark the methods. ROS-free.
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -408,10 +409,7 @@ int main(int argc, char** argv) {
     if (*ident) return runIdentify(csv, method, config, seed, json_out);
     if (*bench) return runBench(scenario, seeds, methods, config, json_out, reference, threads);
     if (*perf) return runPerf(scenario, methods, config, std::max(1, repeat), json_out);
-  } catch (const ConfigError& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
-    return 2;
-  } catch (const InputError& e) {
+  } catch (const UserError& e) {  // bad configuration or input: exit status 2
     std::fprintf(stderr, "error: %s\n", e.what());
     return 2;
   } catch (const std::exception& e) {
