@@ -187,6 +187,9 @@ RunResult runOne(const std::vector<SimulatedSample>& data, IdentifierConfig conf
   return r;
 }
 
+/// The comma-separated --methods list; ConfigError on an unknown name.
+std::vector<std::string> methodsFrom(const std::string& list);
+
 std::vector<std::string> splitList(const std::string& s) {
   std::vector<std::string> out;
   std::stringstream ss(s);
@@ -198,13 +201,18 @@ std::vector<std::string> splitList(const std::string& s) {
   return out;
 }
 
+std::vector<std::string> methodsFrom(const std::string& list) {
+  const std::vector<std::string> methods = splitList(list);
+  for (const std::string& m : methods)
+    if (!isKnownMethod(m)) throw ConfigError("--methods: unknown method '" + m + "' (expected " + methodList() + ")");
+  return methods;
+}
+
 int runBench(const std::string& scenario_path, int seeds, const std::string& methods_arg, const std::string& config_path,
              const std::string& json_out, const std::string& reference, int threads) {
   const Scenario base = loadScenario(scenario_path);
   const IdentifierConfig config = configFor(config_path, "", -1);
-  const std::vector<std::string> methods = splitList(methods_arg);
-  for (const std::string& m : methods)
-    if (!isKnownMethod(m)) throw ConfigError("--methods: unknown method '" + m + "' (expected " + methodList() + ")");
+  const std::vector<std::string> methods = methodsFrom(methods_arg);
   if (seeds < 1) throw ConfigError("--seeds: must be >= 1");
 
   std::vector<std::vector<RunResult>> results(methods.size(), std::vector<RunResult>(static_cast<std::size_t>(seeds)));
@@ -333,13 +341,13 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
 // perf: samples per second of wall time, one core, over a recorded run
 int runPerf(const std::string& scenario_path, const std::string& methods_arg, const std::string& config_path,
             int repeat, const std::string& json_out) {
+  const std::vector<std::string> methods = methodsFrom(methods_arg);
   const Scenario scenario = loadScenario(scenario_path);
   const std::vector<SimulatedSample> data = simulate(scenario);
   const IdentifierConfig base = configFor(config_path, "", -1);
   json records = json::array();
   std::printf("%-9s %14s %12s %14s %14s\n", "method", "samples/s", "ns/sample", "RT x @10 kHz", "RT x @1 MHz");
-  for (const std::string& method : splitList(methods_arg)) {
-    if (!isKnownMethod(method)) throw ConfigError("--methods: unknown method '" + method + "'");
+  for (const std::string& method : methods) {
     IdentifierConfig c = base;
     c.method = method;
     double wall = 0.0;
