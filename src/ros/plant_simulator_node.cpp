@@ -69,6 +69,7 @@ int main(int argc, char** argv) {
   std::uint64_t published = 0;
   while (ros::ok() && !sim.done()) {
     DriveSampleBatch msg;
+    std::vector<DriveSample> singles;  // the decimated per-sample topic, sent with the batch
     msg.sample_period = Ts;
     msg.first_index = sim.sampleIndex();
     ParameterVector truth{};
@@ -91,21 +92,24 @@ int main(int argc, char** argv) {
         one.i_d = s.sample.i_d;
         one.i_q = s.sample.i_q;
         one.omega_e = s.sample.omega_e;
-        pub_sample.publish(one);
+        singles.push_back(one);
       }
     }
+    // Publish when the batch's last sample exists, as a real drive must: wait until wall time
+    // reaches its stamp (scaled by the real-time factor).
+    if (realtime > 0) {
+      const double due = static_cast<double>(sim.sampleIndex() - 1) * Ts / realtime;
+      const double ahead = due - (ros::WallTime::now() - wall_start).toSec();
+      if (ahead > 0) ros::WallDuration(ahead).sleep();
+    }
     published += msg.u_d.size();
+    for (const DriveSample& one : singles) pub_sample.publish(one);
     pub_batch.publish(msg);
     pub_truth.publish(toMessage(truth, msg.header.stamp));
     if (publish_clock) {
       rosgraph_msgs::Clock clock;
       clock.clock = start + ros::Duration(static_cast<double>(sim.sampleIndex()) * Ts);
       pub_clock.publish(clock);
-    }
-    if (realtime > 0) {
-      const double due = static_cast<double>(sim.sampleIndex()) * Ts / realtime;
-      const double ahead = due - (ros::WallTime::now() - wall_start).toSec();
-      if (ahead > 0) ros::WallDuration(ahead).sleep();
     }
   }
   ROS_INFO("published %llu samples (%.3g s of drive time) in %.3g s of wall time",
