@@ -135,6 +135,11 @@ class ParticleSwarm {
   std::shared_ptr<const AcceptancePolicy> policy_;
   ParameterVector lower_, span_;
   std::vector<Particle> swarm_;
+  struct Move {
+    Point x{}, v{};
+    double f = 0.0;
+  };
+  std::vector<Move> moves_;  // this iteration's candidate positions (reused, no allocation per sample)
   Point gbest_{};
   double f_gbest_ = std::numeric_limits<double>::infinity();
   FastRandom rng_;
@@ -149,9 +154,14 @@ void ParticleSwarm::iterate(const F& f) {
   const double w = s_.w_max - (s_.w_max - s_.w_min) * static_cast<double>(k_) / s_.reset_iterations;
   const double scale = std::max(std::abs(f_gbest_), 1e-300);  // Delta f is relative to the best
   const bool thermal = policy_->hasTemperature();
-  Point best = gbest_;
-  for (Particle& p : swarm_) {
-    Point x_new, v_new;
+  const std::size_t n = swarm_.size();
+  // 1. Every particle's move (Eq. 4) and its fitness, before any acceptance decision: the update is
+  //    synchronous (gbest changes at the end of the iteration), so the order does not matter, and
+  //    20 independent evaluations back to back keep the CPU busy between unpredictable branches.
+  moves_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    Particle& p = swarm_[i];
+    Move& m = moves_[i];
     for (int d = 0; d < kParameterCount; ++d) {
       double r1, r2;
       rng_.uniformPair(r1, r2);
@@ -160,23 +170,29 @@ void ParticleSwarm::iterate(const F& f) {
       double x = p.x[d] + v;
       if (x < 0.0) { x = 0.0; v = 0.0; }
       if (x > 1.0) { x = 1.0; v = 0.0; }
-      x_new[d] = x;
-      v_new[d] = v;
+      m.x[d] = x;
+      m.v[d] = v;
     }
-    const double f_new = f(toParameters(x_new));
-    ++evaluations_;
-    const double delta = (f_new - p.f) / scale;
+  }
+  for (Move& m : moves_) m.f = f(toParameters(m.x));
+  evaluations_ += n;
+  // 2. Acceptance (Eq. 15-17), temperatures (Eq. 7-8), personal and global bests.
+  Point best = gbest_;
+  for (std::size_t i = 0; i < n; ++i) {
+    Particle& p = swarm_[i];
+    const Move& m = moves_[i];
+    const double delta = (m.f - p.f) / scale;
     const double r = thermal && delta >= 0 ? rng_.uniform() : 0.0;
     if (policy_->accept(delta, r, p.th)) {
-      p.x = x_new;
-      p.v = v_new;
-      p.f = f_new;
-      if (f_new < p.f_pbest) {
-        p.f_pbest = f_new;
-        p.pbest = x_new;
-        if (f_new < f_gbest_) {
-          f_gbest_ = f_new;
-          best = x_new;
+      p.x = m.x;
+      p.v = m.v;
+      p.f = m.f;
+      if (m.f < p.f_pbest) {
+        p.f_pbest = m.f;
+        p.pbest = m.x;
+        if (m.f < f_gbest_) {
+          f_gbest_ = m.f;
+          best = m.x;
         }
       }
     }
