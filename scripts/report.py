@@ -10,6 +10,7 @@ DIR/fitness.png (Figs. 7 and 10) and DIR/report.md (Table 2/3 layout with the pa
 beside ours). Works on bags from demo.launch, replay.launch and csv2bag + replay.
 """
 import argparse
+import bisect
 import csv
 import math
 import os
@@ -25,7 +26,8 @@ TOLERANCE = 0.01  # recognition band, relative
 class BagData:
     def __init__(self):
         self.estimates = {}   # method -> list of (t, msg)
-        self.truth = []       # list of (t, (R_s, L_d, L_q, psi_f))
+        self.truth = []       # list of (t, (R_s, L_d, L_q, psi_f)), sorted by t
+        self.truth_times = [] # the t of each truth entry, for bisect
         self.speeds = []      # electrical speed samples [rad/s]
         self.origin = None    # first stamp [ns]
         self.missing = []     # what the bag lacks, in words
@@ -59,6 +61,7 @@ def read_bag(path):
     for m in data.estimates.values():
         m.sort(key=lambda x: x[0])
     data.truth.sort(key=lambda x: x[0])
+    data.truth_times = [t for t, _ in data.truth]
     if not data.estimates:
         data.missing.append("no estimates (no pmsm_param_id/ParameterEstimate topic)")
     else:
@@ -74,13 +77,8 @@ def truth_at(data, t):
     """Latest true parameter vector stamped at or before t (or the first one)."""
     if not data.truth:
         return None
-    best = data.truth[0][1]
-    for tt, p in data.truth:
-        if tt <= t + 1e-12:
-            best = p
-        else:
-            break
-    return best
+    i = bisect.bisect_right(data.truth_times, t + 1e-12)  # entries stamped <= t
+    return data.truth[max(i - 1, 0)][1]
 
 
 def values(msg):
