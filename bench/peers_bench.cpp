@@ -1,6 +1,6 @@
 // peers_bench: our PSO, SAPSO and FBDAPSO against pagmo2's pso and simulated_annealing and Ceres
 // Levenberg-Marquardt on the same problem: the same recorded samples, the same fitness (the
-// horizon statistics of a wc1_drive run), the same search box, 30 seeds, equal evaluation budget.
+// block statistics of a wc1_drive run), the same search box, 30 seeds, equal evaluation budget.
 // An optional tool: built only when libpagmo-dev and libceres-dev are installed.
 #include <ceres/ceres.h>
 
@@ -18,11 +18,11 @@
 #include <pagmo/problem.hpp>
 #include <random>
 
-#include "pmsm_param_id/drive_simulator.hpp"
-#include "pmsm_param_id/horizon_statistics.hpp"
-#include "pmsm_param_id/identifier_config.hpp"
-#include "pmsm_param_id/identifiers.hpp"
-#include "pmsm_param_id/metrics.hpp"
+#include "pmsm_param_id/simulation/drive_simulator.hpp"
+#include "pmsm_param_id/identification/block_statistics.hpp"
+#include "pmsm_param_id/identification/identifier_config.hpp"
+#include "pmsm_param_id/identification/identifiers.hpp"
+#include "pmsm_param_id/identification/metrics.hpp"
 
 using namespace pmsm_param_id;
 using Clock = std::chrono::steady_clock;
@@ -33,7 +33,7 @@ namespace {
 struct Tracker {
   ParameterVector truth{};
   ParameterVector lower{}, span{};
-  const HorizonStatistics* stats = nullptr;
+  const BlockStatistics* stats = nullptr;
   long evals = 0, evals_to_1pct = -1;
   double best = INFINITY, wall_to_1pct = NAN;
   ParameterVector best_p{};
@@ -153,13 +153,14 @@ int main(int argc, char** argv) {
   app.add_option("--json", json_out, "one record per (solver, seed)");
   CLI11_PARSE(app, argc, argv);
 
-  const IdentifierConfig config;
+  const IdentifierConfig config = loadIdentifierConfig(std::string(PMSM_SOURCE_DIR) + "/config/identifiers/paper.yaml");
   std::vector<Result> results;
   for (int seed = 1; seed <= seeds; ++seed) {
     Scenario sc = loadScenario(scenario_path);
     sc.seed = static_cast<std::uint64_t>(seed);
     DriveSimulator sim(sc);
-    HorizonStatistics stats(config.horizon);
+    BlockStatistics stats(config.window);
+    stats.configure(sc.drive.sample_period);
     ParameterVector truth{};
     while (!sim.done()) {
       const SimulatedSample s = sim.step();
@@ -171,8 +172,8 @@ int main(int argc, char** argv) {
       t->truth = truth;
       t->stats = &stats;
       for (int d = 0; d < 4; ++d) {
-        t->lower[d] = config.lower[d];
-        t->span[d] = config.upper[d] - config.lower[d];
+        t->lower[d] = config.search.lower[d];
+        t->span[d] = config.search.upper[d] - config.search.lower[d];
       }
       t->t0 = Clock::now();
       return t;
@@ -182,7 +183,7 @@ int main(int argc, char** argv) {
       auto t = fresh();
       IdentifierConfig c = config;
       c.method = m;
-      ParticleSwarm swarm(c.swarm, makeAcceptancePolicy(c), c.lower, c.upper, static_cast<std::uint64_t>(seed));
+      ParticleSwarm swarm(c.swarm, makeAcceptancePolicy(c), c.search.lower, c.search.upper, static_cast<std::uint64_t>(seed));
       Tracker& tr = *t;
       const auto f = [&tr](const ParameterVector& p) { return tr(p); };
       while (tr.evals < budget) swarm.iterate(f);
@@ -212,12 +213,11 @@ int main(int argc, char** argv) {
     {
       auto t = fresh();
       BlockResidual res;
-      const double k = std::sqrt(2.0 / stats.weight());
-      // S = L L^T, so w^T S w = |L^T w|^2.
-      res.Ld = stats.matrixD().llt().matrixU();
-      res.Lq = stats.matrixQ().llt().matrixU();
-      res.Ld *= k;
-      res.Lq *= k;
+      // fitness = w^T S w with S the mean block product = L L^T, so fitness = |L^T w|^2.
+      const Eigen::Matrix4d Sd = stats.meanProductD().topLeftCorner<4, 4>();
+      const Eigen::Matrix<double, 5, 5> Sq = stats.meanProductQ().topLeftCorner<5, 5>();
+      res.Ld = Sd.llt().matrixU();
+      res.Lq = Sq.llt().matrixU();
       for (int d = 0; d < 4; ++d) {
         res.lower[d] = t->lower[d];
         res.span[d] = t->span[d];

@@ -1,10 +1,11 @@
 // Microbenchmarks (Google Benchmark): the pieces that run per sample.
 #include <benchmark/benchmark.h>
 
-#include "pmsm_param_id/drive_simulator.hpp"
-#include "pmsm_param_id/horizon_statistics.hpp"
-#include "pmsm_param_id/identifiers.hpp"
-#include "pmsm_param_id/online_identifier.hpp"
+#include "pmsm_param_id/simulation/drive_simulator.hpp"
+#include "pmsm_param_id/identification/block_statistics.hpp"
+#include "pmsm_param_id/identification/identifier_config.hpp"
+#include "pmsm_param_id/identification/identifiers.hpp"
+#include "pmsm_param_id/identification/online_identifier.hpp"
 
 using namespace pmsm_param_id;
 
@@ -37,8 +38,12 @@ class EndlessRecording {
   std::size_t k_ = 0;
   double offset_ = 0.0;
 };
-HorizonStatistics filledStatistics() {
-  HorizonStatistics stats;
+IdentifierConfig paperBox() {
+  return loadIdentifierConfig(std::string(PMSM_SOURCE_DIR) + "/config/identifiers/paper.yaml");
+}
+BlockStatistics filledStatistics() {
+  BlockStatistics stats;
+  stats.configure(1e-4);
   for (const auto& s : recording()) stats.add(s.sample);
   return stats;
 }
@@ -46,7 +51,7 @@ HorizonStatistics filledStatistics() {
 
 // One fitness evaluation over the default window (independent of its length).
 static void BM_FitnessEvaluation(benchmark::State& state) {
-  const HorizonStatistics stats = filledStatistics();
+  const BlockStatistics stats = filledStatistics();
   ParameterVector p{2.9, 0.0046, 0.0134, 0.178};
   for (auto _ : state) {
     p[kRs] += 1e-12;
@@ -55,9 +60,10 @@ static void BM_FitnessEvaluation(benchmark::State& state) {
 }
 BENCHMARK(BM_FitnessEvaluation);
 
-// Adding one sample to the horizon statistics (block integrals + rank-1 updates).
+// Adding one sample to the block statistics (block integrals + rank-1 updates).
 static void BM_StatisticsUpdate(benchmark::State& state) {
-  HorizonStatistics stats;
+  BlockStatistics stats;
+  stats.configure(1e-4);
   EndlessRecording samples;
   for (auto _ : state) stats.add(samples.next());
 }
@@ -65,10 +71,10 @@ BENCHMARK(BM_StatisticsUpdate);
 
 // One swarm iteration (20 particles: 20 evaluations, velocity and acceptance updates).
 static void BM_SwarmIteration(benchmark::State& state, const char* method) {
-  const HorizonStatistics stats = filledStatistics();
-  IdentifierConfig c;
+  const BlockStatistics stats = filledStatistics();
+  IdentifierConfig c = paperBox();
   c.method = method;
-  ParticleSwarm swarm(c.swarm, makeAcceptancePolicy(c), c.lower, c.upper, 1);
+  ParticleSwarm swarm(c.swarm, makeAcceptancePolicy(c), c.search.lower, c.search.upper, 1);
   const auto f = [&stats](const ParameterVector& p) { return stats.fitness(p); };
   for (auto _ : state) swarm.iterate(f);
 }

@@ -1,4 +1,4 @@
-// bag_tool csv2bag CSV BAG   : a drive log (t,u_d,u_q,i_d,i_q,omega_e[,R_s,L_d,L_q,psi_f]) as a bag
+// bag_tool csv2bag CSV BAG   : a drive log (t,u_d,u_q,i_d,i_q,omega_e[,theta_e][,R_s,L_d,L_q,psi_f]) as a bag
 //                              that replay.launch plays (/drive/samples_batch, /drive/true_parameters).
 // bag_tool bag2csv BAG CSV   : the samples of a bag as a drive log, with the identifier node's time
 //                              base (seconds since the first stamp), so ./run identify sees exactly
@@ -6,12 +6,13 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
 
-#include "pmsm_param_id/config_error.hpp"
-#include "pmsm_param_id/sample_csv.hpp"
+#include "pmsm_param_id/io/config_error.hpp"
+#include "pmsm_param_id/io/sample_csv.hpp"
 #include "ros_bridge.hpp"
 
 using namespace pmsm_param_id;
@@ -39,6 +40,7 @@ int csv2bag(const std::string& csv, const std::string& bag_path, std::size_t bat
   ParameterVector truth{};
   auto flush = [&]() {
     if (msg.u_d.empty()) return;
+    if (std::all_of(msg.theta_e.begin(), msg.theta_e.end(), [](double a) { return std::isnan(a); })) msg.theta_e.clear();
     bag.write(kBatchTopic, msg.header.stamp, msg);
     if (log.has_truth) bag.write(kTruthTopic, msg.header.stamp, toMessage(truth, msg.header.stamp));
     written += msg.u_d.size();
@@ -67,6 +69,7 @@ int csv2bag(const std::string& csv, const std::string& bag_path, std::size_t bat
     msg.i_d.push_back(s.i_d);
     msg.i_q.push_back(s.i_q);
     msg.omega_e.push_back(s.omega_e);
+    msg.theta_e.push_back(s.theta_e);
   }
   flush();
   bag.close();

@@ -1,6 +1,6 @@
 // identifier node: see identifier_node.hpp and README (parameters, topics).
 #include "identifier_node.hpp"
-#include "pmsm_param_id/config_error.hpp"
+#include "pmsm_param_id/io/config_error.hpp"
 
 int main(int argc, char** argv) {
   ros::init(argc, argv, "identifier");

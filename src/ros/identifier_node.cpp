@@ -2,29 +2,28 @@
 
 #include <cmath>
 
-#include "pmsm_param_id/config_error.hpp"
+#include "pmsm_param_id/io/config_error.hpp"
 
 namespace pmsm_param_id {
 
 IdentifierNode::IdentifierNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pnh), updater_(nh, pnh) {
-  std::string config_path, method, input;
-  pnh_.param<std::string>("config", config_path, "");
+  const std::string config_path = typedParam<std::string>(pnh_, "config", "");
   IdentifierConfig config = config_path.empty() ? IdentifierConfig{} : loadIdentifierConfig(config_path);
-  if (pnh_.getParam("method", method)) config.method = method;
-  int seed = -1;
-  if (pnh_.getParam("seed", seed)) {
+  config.method = typedParam<std::string>(pnh_, "method", config.method);
+  const int seed = typedParam<int>(pnh_, "seed", -1);
+  if (pnh_.hasParam("seed")) {
     if (seed < 0) throw ConfigError("parameter ~seed: must be >= 0");
     config.seed = static_cast<std::uint64_t>(seed);
   }
   if (!isKnownMethod(config.method))
     throw ConfigError("parameter ~method: unknown method '" + config.method + "' (expected " + methodList() + ")");
   validate(config, config_path.empty() ? "parameters" : config_path);
-  pnh_.param("publish_period", publish_period_, 1e-3);
+  publish_period_ = typedParam<double>(pnh_, "publish_period", 1e-3);
   if (!(publish_period_ > 0)) throw ConfigError("parameter ~publish_period: must be > 0 [s]");
-  pnh_.param("timeout", timeout_, 1.0);
+  timeout_ = typedParam<double>(pnh_, "timeout", 1.0);
   if (!(timeout_ > 0)) throw ConfigError("parameter ~timeout: must be > 0 [s]");
-  pnh_.param<std::string>("frame_id", frame_id_, "");
-  pnh_.param<std::string>("input", input, "batch");
+  frame_id_ = typedParam<std::string>(pnh_, "frame_id", "");
+  const std::string input = typedParam<std::string>(pnh_, "input", "batch");
   if (input != "batch" && input != "single")
     throw ConfigError("parameter ~input: must be 'batch' or 'single', got '" + input + "'");
 
@@ -98,9 +97,9 @@ void IdentifierNode::publish() {
   const Estimate e = identifier_->estimate();
   unpublished_ = false;
   for (double v : e.parameters)
-    if (!std::isfinite(v)) {
+    if (!std::isfinite(v)) {  // before the data fix the motor's scale there is no estimate to publish
       ++nonfinite_estimates_;
-      ROS_WARN_THROTTLE(1.0, "non-finite estimate not published");
+      ROS_INFO_THROTTLE(5.0, "no estimate yet: %s", e.reason[kLq].c_str());
       return;
     }
   pub_estimate_.publish(toMessage(e, clock_.stampOf(last_t_), frame_id_));
@@ -127,27 +126,43 @@ void IdentifierNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
     stat.summaryf(DiagnosticStatus::WARN, "no samples received for %.1f s on %s", silent, sub_.getTopic().c_str());
   else if (silent > timeout_)
     stat.summaryf(DiagnosticStatus::WARN, "no samples for %.1f s", silent);
-  else if (nonfinite_estimates_ > 0)
-    stat.summary(DiagnosticStatus::ERROR, "non-finite estimates");
+  else if (published_ == 0 && nonfinite_estimates_ > 0)
+    stat.summary(DiagnosticStatus::WARN, "no estimate yet: the data do not determine the motor's scale (no current?)");
   else if (c.skipped_nonfinite + dropped_ + c.gaps + c.time_resets + bad_messages_ > 0)
     stat.summary(DiagnosticStatus::WARN, "running; some input was bad (see counters)");
   else
     stat.summary(DiagnosticStatus::OK, "running");
   const Estimate e = identifier_->estimate();
+  int poor = 0, identified = 0;
+  for (int p = 0; p < kParameterCount; ++p) {
+    poor += e.status[p] == ParameterStatus::PoorFit || e.status[p] == ParameterStatus::Implausible;
+    identified += e.identifiable[p];
+  }
+  if (stat.level == DiagnosticStatus::OK && poor > 0)
+    stat.summaryf(DiagnosticStatus::WARN, "the model does not fit the data%s%s",
+                  e.fit.likely_cause.empty() ? "" : ": likely cause: ", e.fit.likely_cause.c_str());
+  else if (stat.level == DiagnosticStatus::OK)
+    stat.summaryf(DiagnosticStatus::OK, "running; %d of 4 parameters identified", identified);
   stat.add("method", e.method);
+  stat.add("sampling period [s]", e.sample_period);
+  stat.add("current noise from the data [A]", std::max(e.fit.noise_std_d, e.fit.noise_std_q));
+  stat.add("fit consistent", e.fit.consistent ? "yes" : "no");
+  if (!e.fit.likely_cause.empty()) stat.add("likely cause of the misfit", e.fit.likely_cause);
   stat.add("samples received", received_);
   stat.add("samples used", c.used);
   stat.add("samples skipped (non-finite)", c.skipped_nonfinite);
   stat.add("samples skipped (duplicate stamp)", c.skipped_duplicate);
+  stat.add("samples skipped (stamp too close)", c.skipped_too_close);
+  stat.add("sampling period changes", c.period_changes);
   stat.add("samples dropped (index gaps)", dropped_);
   stat.add("malformed messages", bad_messages_);
   stat.add("time gaps", c.gaps);
   stat.add("time resets (stamps went backwards)", c.time_resets);
   stat.add("rate [samples/s]", rate_);
   stat.add("estimates published", published_);
-  stat.add("non-finite estimates", nonfinite_estimates_);
+  stat.add("estimates withheld (no estimate yet)", nonfinite_estimates_);
   for (int p = 0; p < kParameterCount; ++p)
-    stat.add(parameterNames()[p] + " identifiable", e.identifiable[p] ? "yes" : "no");
+    stat.add(parameterNames()[p], std::string(toString(e.status[p])) + ": " + e.reason[p]);
 }
 
 }  // namespace pmsm_param_id

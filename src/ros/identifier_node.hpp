@@ -6,7 +6,7 @@
 #include <memory>
 #include <string>
 
-#include "pmsm_param_id/online_identifier.hpp"
+#include "pmsm_param_id/identification/online_identifier.hpp"
 #include "ros_bridge.hpp"
 
 namespace pmsm_param_id {

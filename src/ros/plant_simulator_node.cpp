@@ -14,8 +14,8 @@
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
 
-#include "pmsm_param_id/config_error.hpp"
-#include "pmsm_param_id/drive_simulator.hpp"
+#include "pmsm_param_id/io/config_error.hpp"
+#include "pmsm_param_id/simulation/drive_simulator.hpp"
 #include "ros_bridge.hpp"
 
 using namespace pmsm_param_id;
@@ -24,13 +24,27 @@ int main(int argc, char** argv) {
   ros::init(argc, argv, "plant_simulator");
   ros::NodeHandle pnh("~");
   std::string path;
-  if (!pnh.getParam("scenario", path)) {
+  double duration = 0, realtime = 1, linger = 1;
+  int seed = -1, batch = 100, decimation = 100, wait_for = 0;
+  bool publish_clock = false;
+  try {
+    path = typedParam<std::string>(pnh, "scenario", "");
+    duration = typedParam<double>(pnh, "duration", 0.0);
+    realtime = typedParam<double>(pnh, "realtime_factor", 1.0);
+    linger = typedParam<double>(pnh, "linger", 1.0);
+    seed = typedParam<int>(pnh, "seed", -1);
+    batch = typedParam<int>(pnh, "batch_size", 100);
+    decimation = typedParam<int>(pnh, "decimation", 100);
+    wait_for = typedParam<int>(pnh, "wait_for_subscribers", 0);
+    publish_clock = typedParam<bool>(pnh, "publish_clock", false);
+  } catch (const ConfigError& e) {
+    ROS_FATAL("%s", e.what());
+    return 1;
+  }
+  if (path.empty()) {
     ROS_FATAL("parameter ~scenario: missing (path of a scenario YAML)");
     return 1;
   }
-  double duration = pnh.param("duration", 0.0), realtime = pnh.param("realtime_factor", 1.0);
-  double linger = pnh.param("linger", 1.0);
-  const int seed = pnh.param("seed", -1), batch = pnh.param("batch_size", 100), decimation = pnh.param("decimation", 100);
   if (batch < 1) { ROS_FATAL("parameter ~batch_size: must be >= 1"); return 1; }
   if (decimation < 1) { ROS_FATAL("parameter ~decimation: must be >= 1"); return 1; }
   if (realtime < 0) { ROS_FATAL("parameter ~realtime_factor: must be >= 0"); return 1; }
@@ -47,10 +61,8 @@ int main(int argc, char** argv) {
   ros::Publisher pub_batch = pnh.advertise<DriveSampleBatch>("samples_batch", 1000);
   ros::Publisher pub_sample = pnh.advertise<DriveSample>("samples", 1000);
   ros::Publisher pub_truth = pnh.advertise<ElectricalParameters>("true_parameters", 100, true);
-  const bool publish_clock = pnh.param("publish_clock", false);
   ros::Publisher pub_clock;
   if (publish_clock) pub_clock = ros::NodeHandle().advertise<rosgraph_msgs::Clock>("/clock", 10);
-  const int wait_for = pnh.param("wait_for_subscribers", 0);
   const ros::WallTime wait_start = ros::WallTime::now();
   while (ros::ok() && static_cast<int>(pub_batch.getNumSubscribers()) < wait_for &&
          (ros::WallTime::now() - wait_start).toSec() < 20.0)
@@ -84,6 +96,7 @@ int main(int argc, char** argv) {
       msg.i_d.push_back(s.sample.i_d);
       msg.i_q.push_back(s.sample.i_q);
       msg.omega_e.push_back(s.sample.omega_e);
+      msg.theta_e.push_back(s.sample.theta_e);
       if ((msg.first_index + static_cast<std::uint64_t>(k)) % static_cast<std::uint64_t>(decimation) == 0) {
         DriveSample one;
         one.header.stamp = msg.header.stamp + ros::Duration(k * Ts);
@@ -92,6 +105,7 @@ int main(int argc, char** argv) {
         one.i_d = s.sample.i_d;
         one.i_q = s.sample.i_q;
         one.omega_e = s.sample.omega_e;
+        one.theta_e = s.sample.theta_e;
         singles.push_back(one);
       }
     }

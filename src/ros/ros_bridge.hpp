@@ -2,6 +2,8 @@
 #pragma once
 #include <ros/ros.h>
 
+#include <limits>
+#include <type_traits>
 #include <string>
 #include <vector>
 
@@ -9,10 +11,45 @@
 #include "pmsm_param_id/DriveSampleBatch.h"
 #include "pmsm_param_id/ElectricalParameters.h"
 #include "pmsm_param_id/ParameterEstimate.h"
-#include "pmsm_param_id/online_identifier.hpp"
-#include "pmsm_param_id/sample.hpp"
+#include "pmsm_param_id/identification/online_identifier.hpp"
+#include "pmsm_param_id/io/config_error.hpp"
+#include "pmsm_param_id/model/sample.hpp"
 
 namespace pmsm_param_id {
+
+/// Private parameter `name` of the node, checked for its type: missing -> fallback; present with
+/// another type (`_seed:=abc`, `_method:=7`) -> ConfigError "parameter ~name: expected ..., got ...".
+template <class T>
+T typedParam(const ros::NodeHandle& pnh, const std::string& name, const T& fallback) {
+  XmlRpc::XmlRpcValue v;
+  if (!pnh.getParam(name, v)) return fallback;
+  const auto got = [&]() -> std::string {
+    switch (v.getType()) {
+      case XmlRpc::XmlRpcValue::TypeString: return "the text '" + static_cast<std::string>(v) + "'";
+      case XmlRpc::XmlRpcValue::TypeInt: return "the integer " + std::to_string(static_cast<int>(v));
+      case XmlRpc::XmlRpcValue::TypeDouble: return "the number " + std::to_string(static_cast<double>(v));
+      case XmlRpc::XmlRpcValue::TypeBoolean: return static_cast<bool>(v) ? "true" : "false";
+      default: return "a value of another type";
+    }
+  };
+  const auto fail = [&](const char* expected) {
+    throw ConfigError("parameter ~" + name + ": expected " + expected + ", got " + got());
+  };
+  if constexpr (std::is_same_v<T, std::string>) {
+    if (v.getType() != XmlRpc::XmlRpcValue::TypeString) fail("a text");
+    return static_cast<std::string>(v);
+  } else if constexpr (std::is_same_v<T, bool>) {
+    if (v.getType() != XmlRpc::XmlRpcValue::TypeBoolean) fail("true or false");
+    return static_cast<bool>(v);
+  } else if constexpr (std::is_integral_v<T>) {
+    if (v.getType() != XmlRpc::XmlRpcValue::TypeInt) fail("an integer");
+    return static_cast<T>(static_cast<int>(v));
+  } else {
+    if (v.getType() == XmlRpc::XmlRpcValue::TypeInt) return static_cast<T>(static_cast<int>(v));
+    if (v.getType() != XmlRpc::XmlRpcValue::TypeDouble) fail("a number");
+    return static_cast<T>(static_cast<double>(v));
+  }
+}
 
 /// Turns ROS stamps into the core's double seconds relative to the first stamp of the stream.
 /// (Absolute stamps are ~1.7e9 s: as doubles they resolve only 0.24 us, too coarse for 1 MHz.)
@@ -35,9 +72,15 @@ class StreamClock {
 };
 
 inline Sample toSample(const DriveSampleBatch& b, std::size_t k, double t) {
-  return Sample{t, b.u_d[k], b.u_q[k], b.i_d[k], b.i_q[k], b.omega_e[k]};
+  Sample s{t, b.u_d[k], b.u_q[k], b.i_d[k], b.i_q[k], b.omega_e[k]};
+  if (b.theta_e.size() == b.u_d.size()) s.theta_e = b.theta_e[k];
+  return s;
 }
-inline Sample toSample(const DriveSample& m, double t) { return Sample{t, m.u_d, m.u_q, m.i_d, m.i_q, m.omega_e}; }
+inline Sample toSample(const DriveSample& m, double t) {
+  Sample s{t, m.u_d, m.u_q, m.i_d, m.i_q, m.omega_e};
+  s.theta_e = m.theta_e;
+  return s;
+}
 
 /// Empty string when the batch is well formed, else what is wrong with it.
 inline std::string checkBatch(const DriveSampleBatch& b) {
@@ -45,6 +88,7 @@ inline std::string checkBatch(const DriveSampleBatch& b) {
   if (b.u_q.size() != n || b.i_d.size() != n || b.i_q.size() != n || b.omega_e.size() != n)
     return "arrays of different lengths";
   if (n > 1 && !(b.sample_period > 0)) return "sample_period must be > 0";
+  if (!b.theta_e.empty() && b.theta_e.size() != n) return "theta_e must be empty or as long as the other arrays";
   return "";
 }
 
@@ -58,9 +102,19 @@ inline ParameterEstimate toMessage(const Estimate& e, const ros::Time& stamp, co
   m.L_q = e.parameters[kLq];
   m.psi_f = e.parameters[kPsiF];
   for (int p = 0; p < kParameterCount; ++p) {
+    m.status[p] = static_cast<std::uint8_t>(e.status[p]);
+    m.status_reason[p] = e.reason[p];
     m.identifiable[p] = e.identifiable[p];
-    m.relative_std[p] = e.relative_std[p];
+    m.relative_uncertainty[p] = e.relative_uncertainty[p];
+    m.data_optimum[p] = e.fit.available ? e.fit.optimum[p] : std::numeric_limits<double>::quiet_NaN();
   }
+  m.fit_consistent = e.fit.consistent;
+  m.fit_ratio[0] = e.fit.fit_ratio_d;
+  m.fit_ratio[1] = e.fit.fit_ratio_q;
+  m.noise_std[0] = e.fit.noise_std_d;
+  m.noise_std[1] = e.fit.noise_std_q;
+  m.fit_likely_cause = e.fit.likely_cause;
+  m.sample_period = e.sample_period;
   m.fitness = e.fitness;
   m.iteration = e.iteration;
   m.temperature = e.temperature;

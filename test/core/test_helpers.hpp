@@ -3,8 +3,8 @@
 #include <string>
 #include <vector>
 
-#include "pmsm_param_id/drive_simulator.hpp"
-#include "pmsm_param_id/scenario.hpp"
+#include "pmsm_param_id/simulation/drive_simulator.hpp"
+#include "pmsm_param_id/simulation/scenario.hpp"
 
 namespace test_helpers {
 

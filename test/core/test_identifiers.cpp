@@ -4,10 +4,10 @@
 #include <cmath>
 #include <limits>
 
-#include "pmsm_param_id/config_error.hpp"
-#include "pmsm_param_id/metrics.hpp"
-#include "pmsm_param_id/online_identifier.hpp"
-#include "pmsm_param_id/sample_csv.hpp"
+#include "pmsm_param_id/io/config_error.hpp"
+#include "pmsm_param_id/identification/metrics.hpp"
+#include "pmsm_param_id/identification/online_identifier.hpp"
+#include "pmsm_param_id/io/sample_csv.hpp"
 #include "test_helpers.hpp"
 
 using namespace pmsm_param_id;
@@ -20,8 +20,8 @@ std::vector<SimulatedSample> cleanDrive(const char* file = "wc1_drive.yaml", dou
   s.duration = duration;
   return test_helpers::run(s);
 }
-Estimate identify(const std::vector<SimulatedSample>& data, const std::string& method, std::uint64_t seed = 1) {
-  IdentifierConfig c;
+Estimate identify(const std::vector<SimulatedSample>& data, const std::string& method, std::uint64_t seed = 1,
+                  IdentifierConfig c = {}) {
   c.method = method;
   c.seed = seed;
   auto id = makeIdentifier(c);
@@ -45,6 +45,8 @@ TEST_P(EachMethod, RecoversTheParametersOfANoiseFreeRun) {
     EXPECT_NEAR(errorPercent(e.parameters[p], data.back().truth[p]), 0.0, tol)
         << method << " " << parameterNames()[p] << " = " << e.parameters[p];
   EXPECT_EQ(e.counters.used, data.size());
+  if (std::string(method) != "ekf")
+    for (int p = 0; p < kParameterCount; ++p) EXPECT_TRUE(e.identifiable[p]) << method << " " << e.reason[p];
 }
 // Tolerances from this setup over seeds 1-30 (largest |error| of the four parameters, worst seed):
 // FBDAPSO 0.069-0.088 %, SAPSO 0.24-0.32 % (its hot start of every cycle leaves the last cycle's
@@ -66,11 +68,12 @@ TEST(OnlineIdentifier, LdIsFlaggedOnIdZeroDataOthersAreNot) {
   Scenario s = test_helpers::scenario("wc1_no_injection.yaml");
   s.drive.sample_period = 1e-4;
   s.drive.integration_substeps = 10;
+  s.sensors.current_noise_sigma = 0.03;  // with noise-free data even the tiny i_d transients determine L_d
   const auto data = test_helpers::run(s);
   for (const char* m : {"fbdapso", "rls"}) {
     const Estimate e = identify(data, m);
-    EXPECT_FALSE(e.identifiable[kLd]) << m << " rel std " << e.relative_std[kLd];
-    EXPECT_TRUE(e.identifiable[kLq]) << m;
+    EXPECT_EQ(e.status[kLd], ParameterStatus::NotExcited) << m << " " << e.reason[kLd];
+    EXPECT_TRUE(e.identifiable[kLq]) << m << " " << e.reason[kLq];
   }
   // With the injection the same data determine all four.
   const Estimate injected = identify(cleanDrive("wc1_drive.yaml", 0.5), "fbdapso");
@@ -150,12 +153,15 @@ TEST(IdentifierConfig, BadValuesNameTheKey) {
   c.method = "gradient";
   EXPECT_EQ(message(c), "cfg.yaml: key 'method': unknown method 'gradient' (expected fbdapso, sapso, pso, ekf, rls)");
   c = {};
-  c.lower[kLq] = c.upper[kLq];
+  c.search.fixed_bounds = true;
+  c.search.lower = {1, 1e-3, 2e-3, 0.1};
+  c.search.upper = {2, 2e-3, 2e-3, 0.2};
   EXPECT_EQ(message(c), "cfg.yaml: key 'bounds.L_q': lower bound must be < upper bound");
   c = {};
   c.swarm.particles = 1;
   EXPECT_EQ(message(c), "cfg.yaml: key 'swarm.particles': population must be >= 2");
-  const std::string path = test_helpers::writeTemp("bad_id.yaml", "bounds:\n  R_s: [3.0, 1.0]\n");
+  const std::string path = test_helpers::writeTemp(
+      "bad_id.yaml", "bounds:\n  R_s: [3.0, 1.0]\n  L_d: [1e-3, 2e-3]\n  L_q: [1e-3, 2e-3]\n  psi_f: [0.1, 0.2]\n");
   try {
     loadIdentifierConfig(path);
     ADD_FAILURE();
@@ -171,7 +177,7 @@ TEST(SampleCsvReader, MissingColumnAndNonNumericCellNameTheLine) {
     readSampleCsv(a);
     ADD_FAILURE();
   } catch (const InputError& e) {
-    EXPECT_EQ(std::string(e.what()), a + ":1: missing column 'i_q' (header must contain t,u_d,u_q,i_d,i_q,omega_e)");
+    EXPECT_EQ(std::string(e.what()), a + ":1: missing column 'i_q' for i_q (name the columns with --column or a --format file)");
   }
   const std::string b = test_helpers::writeTemp("b.csv", "t,u_d,u_q,i_d,i_q,omega_e\n0,1,2,3,4,5\n1e-4,1,2,x3,4,5\n");
   try {

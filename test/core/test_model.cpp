@@ -3,7 +3,7 @@
 
 #include <cmath>
 
-#include "pmsm_param_id/motor_model.hpp"
+#include "pmsm_param_id/model/motor_model.hpp"
 
 using namespace pmsm_param_id;
 

@@ -5,8 +5,8 @@
 #include <dirent.h>
 #include <fstream>
 
-#include "pmsm_param_id/config_error.hpp"
-#include "pmsm_param_id/sample_csv.hpp"
+#include "pmsm_param_id/io/config_error.hpp"
+#include "pmsm_param_id/io/sample_csv.hpp"
 #include "test_helpers.hpp"
 
 using namespace pmsm_param_id;

@@ -3,7 +3,7 @@
 
 #include <cmath>
 
-#include "pmsm_param_id/particle_swarm.hpp"
+#include "pmsm_param_id/identification/particle_swarm.hpp"
 
 using namespace pmsm_param_id;
 
@@ -124,4 +124,40 @@ TEST(ParticleSwarm, RefusesBadSettings) {
                std::invalid_argument);
   EXPECT_THROW(ParticleSwarm(SwarmSettings{}, std::make_shared<AlwaysAccept>(), {1, 1, 3, 1}, {2, 2, 2, 2}, 1),
                std::invalid_argument);
+}
+
+// The three methods differ only in how often they take a worse position. On the same landscape
+// from the same seed: PSO takes every worse move, SAPSO fewer as it cools within each cycle, and
+// FBDAPSO's tempering (T rises after each accepted worse move) keeps it taking more than SAPSO.
+TEST(ParticleSwarm, AcceptanceStatisticsTellThePoliciesApart) {
+  const auto rate = [](std::shared_ptr<AcceptancePolicy> policy, int iterations) {
+    ParticleSwarm s(SwarmSettings{}, std::move(policy), {0.5, 0.0005, 0.0005, 0.02}, {10.0, 0.03, 0.03, 0.6}, 11);
+    for (int i = 0; i < iterations; ++i) s.iterate(bowl);
+    return static_cast<double>(s.worseAccepted()) / static_cast<double>(s.worseProposed());
+  };
+  const double pso = rate(std::make_shared<AlwaysAccept>(), 500);
+  const double sapso = rate(std::make_shared<MetropolisAcceptance>(1000.0, 0.8), 500);
+  const double fbdapso = rate(std::make_shared<BackfireDoubleAnnealing>(800.0, 500.0, 0.8, 0.9, 0.001), 500);
+  EXPECT_DOUBLE_EQ(pso, 1.0);
+  EXPECT_LT(sapso, 0.5);
+  EXPECT_GT(sapso, 0.005);
+  EXPECT_GT(fbdapso, 1.2 * sapso) << "sapso " << sapso << " fbdapso " << fbdapso;
+  EXPECT_LT(fbdapso, 1.0);
+}
+
+// Every reset_iterations iterations the counter, the inertia schedule and the temperature restart.
+TEST(ParticleSwarm, CycleRestartRestoresTheTemperatureSchedule) {
+  SwarmSettings settings;
+  settings.reset_iterations = 50;
+  ParticleSwarm s(settings, std::make_shared<MetropolisAcceptance>(1000.0, 0.8), {0.5, 0.0005, 0.0005, 0.02},
+                  {10.0, 0.03, 0.03, 0.6}, 5);
+  EXPECT_DOUBLE_EQ(s.temperature(), 1000.0);
+  for (int i = 0; i < 10; ++i) s.iterate(bowl);
+  EXPECT_NEAR(s.temperature(), 1000.0 * std::pow(0.8, 10), 1e-9);  // Eq. (7) once per iteration
+  EXPECT_EQ(s.iterationInCycle(), 10);
+  for (int i = 10; i < 50; ++i) s.iterate(bowl);
+  EXPECT_EQ(s.iterationInCycle(), 0);
+  EXPECT_DOUBLE_EQ(s.temperature(), 1000.0);  // restarted with the counter
+  s.iterate(bowl);
+  EXPECT_NEAR(s.temperature(), 800.0, 1e-9);
 }

@@ -1,0 +1,64 @@
+// What an estimate is worth: per-parameter status with its reason, the stated uncertainty, and
+// the check that the model fits the data at the noise level the data themselves show.
+//
+// "identified" means right within the stated uncertainty: the data determine the parameter
+// (excitation), the model fits the data as well as their noise allows (fit check), the method's
+// value lies within that uncertainty of the data's exact optimum, not on a search bound, and is
+// physically plausible. doc/algorithm.md section 4 gives the equations and the measured thresholds.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "pmsm_param_id/identification/block_least_squares.hpp"
+#include "pmsm_param_id/identification/identifier_config.hpp"
+
+namespace pmsm_param_id {
+
+enum class ParameterStatus : std::uint8_t {
+  NoData = 0,        ///< no complete block yet, or the method has not started
+  Identified = 1,    ///< right within the stated uncertainty
+  NotExcited = 2,    ///< the data in the window do not determine it to the required uncertainty
+  PoorFit = 3,       ///< the model does not fit the data at their noise level (see likely_cause)
+  AtBound = 4,       ///< the method's value sits on its search bound or clamp
+  Implausible = 5,   ///< non-finite, <= 0 or outside every PMSM's range
+  NotConverged = 6,  ///< the method's value is further from the data's optimum than the uncertainty allows
+};
+const char* toString(ParameterStatus s);  ///< "no_data", "identified", "not_excited", ...
+
+/// The physical envelope of a PMSM's parameters, far wider than any shipped scenario (watch
+/// motors to megawatt machines): {R_s [ohm], L_d [H], L_q [H], psi_f [Wb]}.
+constexpr ParameterVector kPlausibleLower{1e-4, 1e-7, 1e-7, 1e-5};
+constexpr ParameterVector kPlausibleUpper{1e3, 10.0, 10.0, 50.0};
+bool plausible(int parameter, double value);
+
+/// The data's own verdict, the same for every method on the same window.
+struct FitCheck {
+  bool available = false;          ///< blocks exist and the exact fit succeeded
+  ParameterVector optimum{};       ///< exact minimiser of the block fitness (undetermined: start values)
+  ParameterVector relative_std{};  ///< of the optimum, from the information and the estimated noise [-]
+  std::array<bool, kParameterCount> determined{};
+  double noise_std_d = 0.0;        ///< current noise estimated from the data (block differences) [A]
+  double noise_std_q = 0.0;        ///< [A]
+  double fit_ratio_d = 0.0;        ///< mean r_d^2 at the optimum / what the noise explains [-]
+  double fit_ratio_q = 0.0;        ///< [-]
+  double optimum_fitness = 0.0;    ///< [A^2]
+  bool consistent = false;         ///< the model fits at the noise level
+  std::string likely_cause;        ///< one line when the fit is poor and a cause fits the data
+};
+
+/// Exact fit of the window starting from `start` (positive inductances), and its check.
+FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& settings, const ParameterVector& start,
+                  bool diagnose);
+
+struct Assessment {
+  std::array<ParameterStatus, kParameterCount> status{};
+  std::array<std::string, kParameterCount> reason{};
+  ParameterVector relative_uncertainty{};  ///< stated uncertainty / value [-] (inf where unknown)
+};
+
+/// Status of a method's parameters against the data's fit. at_bound: the method's own bounds.
+Assessment assess(const ParameterVector& parameters, const FitCheck& fit, const std::array<bool, kParameterCount>& at_bound,
+                  const AssessmentSettings& settings);
+
+}  // namespace pmsm_param_id

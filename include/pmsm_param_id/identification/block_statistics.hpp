@@ -1,0 +1,152 @@
+// Sufficient statistics of the adjustable-model current error over blocks of M sampling periods.
+//
+// Integrating Eq. (1) over a block [t_j, t_k] gives, per axis, a residual in amperes that is zero
+// for the true parameters and noise-free data:
+//   r_d = Di_d + (R_s/L_d) int(i_d) - (L_q/L_d) int(omega_e i_q) - (1/L_d) int(u_d)
+//   r_q = Di_q + (R_s/L_q) int(i_q) + (L_d/L_q) int(omega_e i_d) - (1/L_q) int(u_q) + (psi_f/L_q) int(omega_e)
+// Di = i(t_k) - i(t_j); the voltage integrals are exact (u is held over each period); currents and
+// speed are integrated by the trapezoidal rule (second order, unlike the paper's forward Euler).
+// r is the current error of the adjustable model after M steps when it is driven by the measured
+// voltages and (in its resistive and coupling terms) by the measured currents.
+//
+// Two more integrals per axis are kept for the fit diagnosis (doc/algorithm.md section 4):
+//   int(u_k - u_{k-1}) dt   a voltage applied one sample late or early adds a multiple of it;
+//   int(i / |i|) dt         an inverter voltage error along the current vector adds a multiple of it.
+//
+// The fitness is the exponentially forgotten mean of r_d^2 + r_q^2. Since r is linear in the block
+// vector z with parameter-dependent weights, it only needs S = sum lambda^n z z^T, so one
+// evaluation costs the same for any window length. The same is kept for the differences of
+// consecutive blocks, z_k - z_(k-1): white current noise dominates those, which gives the noise
+// level of the data without any configured sigma.
+#pragma once
+#include <Eigen/Core>
+#include <algorithm>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "pmsm_param_id/model/motor_model.hpp"
+#include "pmsm_param_id/model/sample.hpp"
+
+namespace pmsm_param_id {
+
+struct WindowSettings {
+  double block_length = 0.005;             ///< length of one fitness block [s] (whole sampling periods)
+  double forgetting_time_constant = 0.05;  ///< exponential forgetting of the fitness window [s]
+  int voltage_delay_samples = 0;           ///< 0: u(t_k) acts on [t_k, t_k+1); 1: on [t_k+1, t_k+2)
+};
+
+/// Entries of the d-axis block vector.
+enum BlockEntryD : int {
+  kDeltaId = 0,          ///< i_d(t_k) - i_d(t_j) [A]
+  kIntegralId,           ///< int i_d dt [A s]
+  kIntegralOmegaIq,      ///< int omega_e i_q dt [A]
+  kIntegralUd,           ///< int u_d dt [V s]
+  kIntegralUdStep,       ///< int (u_d,k - u_d,k-1) dt [V s] (delay diagnosis)
+  kIntegralIdDirection,  ///< int i_d / |i| dt [s] (inverter-error diagnosis)
+  kBlockSizeD
+};
+/// Entries of the q-axis block vector.
+enum BlockEntryQ : int {
+  kDeltaIq = 0,          ///< [A]
+  kIntegralIq,           ///< [A s]
+  kIntegralOmegaId,      ///< int omega_e i_d dt [A]
+  kIntegralUq,           ///< [V s]
+  kIntegralOmega,        ///< int omega_e dt [rad]
+  kIntegralUqStep,       ///< [V s]
+  kIntegralIqDirection,  ///< [s]
+  kBlockSizeQ
+};
+using BlockD = Eigen::Matrix<double, kBlockSizeD, 1>;
+using BlockQ = Eigen::Matrix<double, kBlockSizeQ, 1>;
+using ProductD = Eigen::Matrix<double, kBlockSizeD, kBlockSizeD>;
+using ProductQ = Eigen::Matrix<double, kBlockSizeQ, kBlockSizeQ>;
+
+class BlockStatistics {
+ public:
+  explicit BlockStatistics(const WindowSettings& settings = {});
+
+  /// Fixes the nominal sampling period: the block length in samples and the forgetting factor.
+  /// Must be called before add(); calling it again forgets everything.
+  void configure(double nominal_period);
+  bool configured() const { return block_samples_ > 0; }
+  /// Adds a sample that follows the previous one (dt > 0 checked by the caller).
+  /// Returns true when a new block was completed and added to the statistics.
+  bool add(const Sample& s);
+  /// The stream was interrupted (gap, skipped sample): blocks restart, statistics are kept.
+  void breakContinuity();
+  /// Forget everything, including the nominal period.
+  void reset();
+
+  /// Mean squared block residual r_d^2 + r_q^2 [A^2] for parameters p; +inf before any block.
+  /// Inline: the swarm calls it 20 times per sample.
+  double fitness(const ParameterVector& p) const {
+    if (weight_ <= 0) return std::numeric_limits<double>::infinity();
+    const double inv = 1.0 / (p[kLd] * p[kLq]);  // one division for both 1/L_d and 1/L_q
+    const double inv_Ld = p[kLq] * inv, inv_Lq = p[kLd] * inv;
+    const double wd[4] = {1.0, p[kRs] * inv_Ld, -p[kLq] * inv_Ld, -inv_Ld};
+    const double wq[5] = {1.0, p[kRs] * inv_Lq, p[kLd] * inv_Lq, -inv_Lq, p[kPsiF] * inv_Lq};
+    // Quadratic forms on the upper triangles (the lower ones are not maintained).
+    double f = 0.0;
+    for (int i = 0; i < 4; ++i) {
+      double row = 0.5 * S_d_(i, i) * wd[i];
+      for (int j = i + 1; j < 4; ++j) row += S_d_(i, j) * wd[j];
+      f += wd[i] * row;
+    }
+    for (int i = 0; i < 5; ++i) {
+      double row = 0.5 * S_q_(i, i) * wq[i];
+      for (int j = i + 1; j < 5; ++j) row += S_q_(i, j) * wq[j];
+      f += wq[i] * row;
+    }
+    return std::max(0.0, 2.0 * f / stored_weight_);
+  }
+
+  bool hasBlocks() const { return weight_ > 0; }
+  /// Sum of the forgetting weights of the blocks in the window [-] (the effective block count).
+  double weight() const { return weight_; }
+  std::uint64_t blocks() const { return blocks_; }          ///< blocks added since reset
+  int blockSamples() const { return block_samples_; }       ///< M
+  double nominalPeriod() const { return nominal_period_; }  ///< [s]
+  double blockDuration() const { return block_samples_ * nominal_period_; }  ///< [s]
+  /// Forgotten means of z z^T (full symmetric): sum lambda^n z z^T / sum lambda^n.
+  ProductD meanProductD() const;
+  ProductQ meanProductQ() const;
+  /// The same for the differences of consecutive blocks of one continuous stretch.
+  ProductD meanDifferenceProductD() const;
+  ProductQ meanDifferenceProductQ() const;
+  bool hasDifferences() const { return difference_weight_ > 0; }
+  const BlockD& lastBlockD() const { return last_d_; }
+  const BlockQ& lastBlockQ() const { return last_q_; }
+  const WindowSettings& settings() const { return settings_; }
+
+ private:
+  struct Cumulative {      // running integrals since the last continuity break
+    double t, i_d, i_q, omega_e;
+    double applied_d, applied_q;            // voltage acting on [t, t_next)
+    double applied_prev_d, applied_prev_q;  // voltage that acted on the period before
+    double u_d, u_q;                        // the sample's own (commanded) voltage
+    double I_d, I_q, OmIq, OmId, U_d, U_q, Om, Ustep_d, Ustep_q, Dir_d, Dir_q;
+    double dir_d, dir_q;                    // i / |i| at the sample
+  };
+  void rescale();
+
+  WindowSettings settings_;
+  int block_samples_ = 0;
+  double nominal_period_ = 0.0;
+  double lambda_ = 1.0;
+  std::vector<Cumulative> ring_;  // capacity block_samples_ + 1
+  std::size_t head_ = 0, count_ = 0;
+  // Stored sums are scaled by 1 / (product of the forgetting factors so far): adding a block is
+  // then one rank-1 update with no pass over the matrices; rescaled before the scale overflows.
+  ProductD S_d_ = ProductD::Zero(), dS_d_ = ProductD::Zero();
+  ProductQ S_q_ = ProductQ::Zero(), dS_q_ = ProductQ::Zero();
+  double stored_weight_ = 0.0, stored_difference_weight_ = 0.0;
+  double scale_ = 1.0;   // 1 / product of forgetting factors
+  double weight_ = 0.0, difference_weight_ = 0.0;
+  std::uint64_t blocks_ = 0;
+  bool have_previous_block_ = false;
+  BlockD last_d_ = BlockD::Zero();
+  BlockQ last_q_ = BlockQ::Zero();
+};
+
+}  // namespace pmsm_param_id

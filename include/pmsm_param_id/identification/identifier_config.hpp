@@ -1,0 +1,75 @@
+// Settings of every identification method, read from config/identifiers/*.yaml. Every default
+// holds for any PMSM: nothing here depends on one motor (doc/algorithm.md).
+#pragma once
+#include <cstdint>
+#include <string>
+
+#include "pmsm_param_id/identification/block_statistics.hpp"
+#include "pmsm_param_id/identification/particle_swarm.hpp"
+#include "pmsm_param_id/model/motor_model.hpp"
+
+namespace pmsm_param_id {
+
+struct EkfSettings {
+  double measurement_sigma = 0.0;      ///< current measurement noise [A]; 0 = the noise level estimated from the data
+  double process_current_sigma = 0.0;  ///< current process noise per step [A]; 0 = 0.3 x measurement sigma
+  double parameter_drift = 0.2;        ///< random-walk rate of each parameter [relative / sqrt(s)]
+  double initial_relative_std = 1.0;   ///< initial parameter std, relative to the starting value [-]
+};
+
+struct RlsSettings {
+  double time_constant = 0.05;      ///< forgetting time constant [s]
+  double initial_covariance = 1e6;  ///< P(0) = initial_covariance * I; also P's ceiling (standstill)
+};
+
+/// Where the swarm searches. With no bounds configured the box is data-driven: centred on the
+/// exact minimiser of the block fitness, spanning span_factor either way, re-centred as data arrive.
+struct SearchSettings {
+  bool fixed_bounds = false;       ///< bounds given in the config: never moved
+  ParameterVector lower{}, upper{};  ///< [SI] when fixed_bounds
+  bool has_initial = false;        ///< initial values given in the config
+  ParameterVector initial{};       ///< [SI] starting values of every method when has_initial
+  double span_factor = 10.0;       ///< data-driven box: [centre / k, centre * k] [-]
+};
+
+/// When is a parameter "identified" (doc/algorithm.md section 4).
+struct AssessmentSettings {
+  double max_relative_uncertainty = 0.01;  ///< identified when the stated uncertainty is within this [-]
+  double confidence_sigmas = 3.0;          ///< the stated uncertainty is this many standard deviations [-]
+  double variance_inflation = 4.0;         ///< information-based variance x this (measured calibration) [-]
+  double max_fit_ratio = 4.0;              ///< poor fit: mean square residual > this x what noise explains [-]
+  double fit_floor_relative = 1e-4;        ///< residual RMS below this x RMS current is always a fit [-]
+  double min_relative_uncertainty = 0.002; ///< the stated uncertainty is never below this (sampling effects) [-]
+};
+
+struct TimeSettings {
+  double sample_period = 0.0;   ///< nominal sampling period [s]; 0 = median of the stream's steps
+  double max_gap_periods = 3.0; ///< a step longer than this many nominal periods is a gap [-]
+};
+
+struct IdentifierConfig {
+  std::string method = "fbdapso";   ///< fbdapso | sapso | pso | ekf | rls
+  std::uint64_t seed = 1;
+  SearchSettings search;
+  WindowSettings window;
+  SwarmSettings swarm;
+  double sapso_T1 = 1000, sapso_C1 = 0.8;
+  double fbdapso_T1 = 800, fbdapso_T2 = 500, fbdapso_C1 = 0.8, fbdapso_C2 = 0.9, fbdapso_zero_delta = 0.001;
+  int iterations_per_sample = 1;
+  EkfSettings ekf;
+  RlsSettings rls;
+  AssessmentSettings assessment;
+  TimeSettings time;
+};
+
+/// Known method names, in the order reports use.
+const std::string& methodList();  // "fbdapso, sapso, pso, ekf, rls"
+bool isKnownMethod(const std::string& m);
+
+/// Reads a YAML file over the defaults above; every key is optional, an unknown key is an error.
+/// ConfigError names the file and key.
+IdentifierConfig loadIdentifierConfig(const std::string& path);
+/// Checks a config built in code (bounds, population, method...). ConfigError names the key.
+void validate(const IdentifierConfig& c, const std::string& source = "config");
+
+}  // namespace pmsm_param_id

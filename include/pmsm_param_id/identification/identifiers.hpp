@@ -1,0 +1,85 @@
+// The five methods behind OnlineIdentifier.
+#pragma once
+#include <Eigen/Core>
+#include <memory>
+
+#include "pmsm_param_id/identification/online_identifier.hpp"
+#include "pmsm_param_id/identification/particle_swarm.hpp"
+
+namespace pmsm_param_id {
+
+/// The acceptance policy that config.method names (pso, sapso, fbdapso) with the config's constants.
+std::shared_ptr<const AcceptancePolicy> makeAcceptancePolicy(const IdentifierConfig& config);
+
+/// PSO, SAPSO or FBDAPSO on the block fitness: iterations_per_sample swarm iterations per
+/// sample once the search box exists (the paper's "identify every sampling point").
+class SwarmIdentifier : public OnlineIdentifier {
+ public:
+  explicit SwarmIdentifier(const IdentifierConfig& config);
+  std::string method() const override { return swarm_->policy().name(); }
+  const ParticleSwarm& swarm() const { return *swarm_; }
+
+ protected:
+  void update(const Sample& s, bool new_block, bool continuity_broken) override;
+  ParameterVector current() const override;
+  void restart() override;
+  void searchBoxMoved() override;
+  std::array<bool, kParameterCount> atBound() const override;
+  std::uint64_t iterations() const override { return swarm_ ? swarm_->iterations() : 0; }
+  double temperature() const override;
+
+ private:
+  std::unique_ptr<ParticleSwarm> swarm_;
+};
+
+using EkfState = Eigen::Matrix<double, 6, 1>;     ///< {i_d, i_q, R_s, L_d, L_q, psi_f}
+using EkfJacobian = Eigen::Matrix<double, 6, 6>;
+/// The EKF's process model: the paper's forward Euler (Eq. 11) over T [s] with the inputs of the
+/// previous sample k; jacobian (optional) receives d x_next / d x.
+EkfState ekfPredict(const EkfState& x, const Sample& k, double T, EkfJacobian* jacobian);
+
+/// Extended Kalman filter on x = {i_d, i_q, R_s, L_d, L_q, psi_f}: the paper's forward-Euler
+/// model (Eq. 11) as process, the measured currents as measurement, random-walk parameters.
+class EkfIdentifier : public OnlineIdentifier {
+ public:
+  explicit EkfIdentifier(const IdentifierConfig& config);
+  std::string method() const override { return "ekf"; }
+
+ protected:
+  void update(const Sample& s, bool new_block, bool continuity_broken) override;
+  ParameterVector current() const override;
+  void restart() override;
+  std::array<bool, kParameterCount> atBound() const override { return clamped_; }
+
+ private:
+  std::array<bool, kParameterCount> clamped_{};
+  std::uint64_t updates_ = 0;
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  using Mat6 = Eigen::Matrix<double, 6, 6>;
+  Vec6 x_ = Vec6::Zero();
+  Mat6 P_ = Mat6::Identity();
+  Sample previous_;
+  bool have_previous_ = false;
+};
+
+/// Recursive least squares with exponential forgetting on the integrated voltage equations,
+/// which are linear in the parameters:
+///   U_d = R_s I_d + L_d Di_d - L_q W_d,   U_q = R_s I_q + L_q Di_q + L_d W_q + psi_f Om.
+class RlsIdentifier : public OnlineIdentifier {
+ public:
+  explicit RlsIdentifier(const IdentifierConfig& config);
+  std::string method() const override { return "rls"; }
+
+ protected:
+  void update(const Sample& s, bool new_block, bool continuity_broken) override;
+  ParameterVector current() const override;
+  void restart() override;
+
+ private:
+  Eigen::Vector4d theta_ = Eigen::Vector4d::Zero();
+  Eigen::Matrix4d P_ = Eigen::Matrix4d::Identity();
+  double last_t_ = 0.0;
+  bool have_last_ = false;
+};
+
+}  // namespace pmsm_param_id

@@ -1,0 +1,126 @@
+// Sample-by-sample identification of {R_s, L_d, L_q, psi_f}: the one code path for live data,
+// bag replay and CSV logs. Concrete methods: SwarmIdentifier (pso, sapso, fbdapso),
+// EkfIdentifier, RlsIdentifier. The base class owns what every method shares: timing, the block
+// statistics, the data-driven search box and the assessment of every estimate.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "pmsm_param_id/identification/assessment.hpp"
+#include "pmsm_param_id/identification/block_statistics.hpp"
+#include "pmsm_param_id/identification/identifier_config.hpp"
+#include "pmsm_param_id/identification/sample_period.hpp"
+#include "pmsm_param_id/model/sample.hpp"
+
+namespace pmsm_param_id {
+
+/// What happened to one sample.
+enum class SampleStatus {
+  Used,              ///< processed (or held until the nominal sampling period is known)
+  SkippedNonFinite,  ///< a NaN or inf field: not used, blocks restart after it
+  SkippedDuplicate,  ///< same stamp as the previous sample: not used
+  SkippedTooClose,   ///< less than a quarter of the nominal period after the previous sample
+  TimeReset,         ///< stamp went backwards: the identifier restarted from scratch with it
+  Gap,               ///< processed after a gap longer than max_gap_periods: blocks restarted
+  PeriodChanged      ///< the stream's sampling rate changed: statistics restarted at the new rate
+};
+const char* toString(SampleStatus s);
+
+struct IdentifierCounters {
+  std::uint64_t used = 0, skipped_nonfinite = 0, skipped_duplicate = 0, skipped_too_close = 0, time_resets = 0,
+                gaps = 0, period_changes = 0;
+  std::uint64_t skipped() const { return skipped_nonfinite + skipped_duplicate + skipped_too_close; }
+};
+
+struct Estimate {
+  std::string method;
+  double t = 0.0;                   ///< stamp of the last sample used [s]
+  ParameterVector parameters{};     ///< {R_s [ohm], L_d [H], L_q [H], psi_f [Wb]} (NaN before the start)
+  std::array<ParameterStatus, kParameterCount> status{};
+  std::array<std::string, kParameterCount> reason{};
+  std::array<bool, kParameterCount> identifiable{};  ///< status == identified
+  ParameterVector relative_uncertainty{};  ///< stated uncertainty / value [-] (inf when unknown)
+  FitCheck fit;                     ///< the data's own fit and its check
+  double fitness = 0.0;             ///< mean squared block current error at the estimate [A^2]
+  double sample_period = 0.0;       ///< nominal sampling period in use [s] (0 while unknown)
+  std::uint64_t iteration = 0;      ///< swarm iterations (0 for ekf, rls)
+  double temperature = 0.0;         ///< mean particle temperature (NaN where there is none)
+  IdentifierCounters counters;
+};
+
+/// Where the methods search: fixed by the config, or centred on the data's optimum.
+struct SearchBox {
+  bool valid = false;
+  ParameterVector lower{}, upper{}, centre{};
+};
+
+class OnlineIdentifier {
+ public:
+  explicit OnlineIdentifier(const IdentifierConfig& config);
+  virtual ~OnlineIdentifier() = default;
+
+  /// Feeds one sample. Never throws on bad data: the status says what was done with it.
+  SampleStatus process(const Sample& s);
+  /// Current estimate with statuses (computes the data's fit: a few microseconds).
+  Estimate estimate() const;
+  /// Forget all data and start again.
+  void reset();
+
+  const IdentifierConfig& config() const { return config_; }
+  const IdentifierCounters& counters() const { return counters_; }
+  /// Current parameter vector only (cheaper than estimate()); NaN before the method starts.
+  ParameterVector parameters() const { return started() ? current() : nanVector(); }
+  const BlockStatistics& statistics() const { return stats_; }
+  const SearchBox& searchBox() const { return box_; }
+  double samplePeriod() const { return period_.nominal(); }
+  virtual std::string method() const = 0;
+
+ protected:
+  /// Method-specific update with a sample that follows the previous one. new_block: the block
+  /// statistics completed a block with this sample. continuity_broken: the previous sample is not
+  /// a valid predecessor (first sample, gap, or a skipped sample in between). Called only once
+  /// the search box exists.
+  virtual void update(const Sample& s, bool new_block, bool continuity_broken) = 0;
+  virtual ParameterVector current() const = 0;
+  /// Start (again) from the search box's centre; called when the box first exists.
+  virtual void restart() = 0;
+  /// The box moved (data-driven box only): keep the state, follow the new bounds.
+  virtual void searchBoxMoved() {}
+  virtual std::array<bool, kParameterCount> atBound() const { return {}; }
+  virtual std::uint64_t iterations() const { return 0; }
+  virtual double temperature() const;
+  bool started() const { return box_.valid; }
+  /// Re-fits the window and re-centres a data-driven box whose centre the data's optimum has left
+  /// (outside [centre / sqrt(k), centre * sqrt(k)]). Returns true when it moved.
+  bool refreshSearchBox();
+  /// The current noise estimate of the data [A] (0 before it exists).
+  double noiseStd() const { return noise_std_; }
+  static ParameterVector nanVector();
+
+  IdentifierConfig config_;
+  BlockStatistics stats_;
+  SearchBox box_;
+
+ private:
+  SampleStatus processTimed(const Sample& s, SampleStatus status);
+  bool tryStart();
+  void setBox(const ParameterVector& centre);
+
+  IdentifierCounters counters_;
+  SamplePeriodEstimator period_;
+  std::vector<Sample> held_;  // samples before the nominal period is known
+  double last_t_ = 0.0;
+  bool have_last_ = false;
+  bool broken_ = true;
+  double noise_std_ = 0.0;
+  mutable std::uint64_t fit_blocks_ = ~0ull;  // block count of the cached fit
+  mutable FitCheck fit_cache_;
+  mutable ParameterVector fit_start_{};
+};
+
+/// Builds the identifier named by config.method. ConfigError on an unknown method or bad values.
+std::unique_ptr<OnlineIdentifier> makeIdentifier(const IdentifierConfig& config);
+
+}  // namespace pmsm_param_id

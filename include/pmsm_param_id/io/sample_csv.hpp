@@ -1,0 +1,29 @@
+// Drive logs as CSV: header t,u_d,u_q,i_d,i_q,omega_e (SI, omega_e electrical) [,theta_e] [,R_s,L_d,L_q,psi_f].
+#pragma once
+#include <string>
+#include <vector>
+
+#include "pmsm_param_id/io/log_format.hpp"
+#include "pmsm_param_id/simulation/drive_simulator.hpp"
+#include "pmsm_param_id/model/sample.hpp"
+
+namespace pmsm_param_id {
+
+struct SampleLog {
+  std::vector<Sample> samples;
+  std::vector<std::size_t> line_numbers;  ///< 1-based line in the file of each sample
+  bool has_truth = false;                 ///< columns R_s,L_d,L_q,psi_f present
+  std::vector<ParameterVector> truth;     ///< per sample when has_truth
+};
+
+/// Writes every sample with full double precision. The file appears complete or not at all
+/// (written to a temporary name in the same folder, then renamed). Throws std::runtime_error.
+void writeSampleCsv(const std::string& path, const std::vector<SimulatedSample>& samples);
+
+/// Reads a log. Extra columns are ignored. A missing column, a row with the wrong number of cells
+/// or a non-numeric cell throws InputError naming the file and line. "nan"/"inf" cells are kept
+/// as non-finite values so that the identifier can skip and count them.
+/// `format` names and scales the columns (default: SI names t,u_d,u_q,i_d,i_q,omega_e[,theta_e]).
+SampleLog readSampleCsv(const std::string& path, const LogFormat& format = {});
+
+}  // namespace pmsm_param_id

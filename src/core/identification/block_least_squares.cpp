@@ -1,0 +1,204 @@
+#include "pmsm_param_id/identification/block_least_squares.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <cmath>
+#include <limits>
+
+namespace pmsm_param_id {
+
+namespace {
+LinearBlockModel base(int extra) {
+  LinearBlockModel m;
+  m.parameter_names = {"R_s", "L_d", "L_q", "psi_f"};
+  const int n = 4 + extra;
+  m.G_d = Eigen::MatrixXd::Zero(kBlockSizeD, n);
+  m.G_q = Eigen::MatrixXd::Zero(kBlockSizeQ, n);
+  m.G_d(kIntegralId, kRs) = 1.0;
+  m.G_d(kDeltaId, kLd) = 1.0;
+  m.G_d(kIntegralOmegaIq, kLq) = -1.0;
+  m.G_q(kIntegralIq, kRs) = 1.0;
+  m.G_q(kIntegralOmegaId, kLd) = 1.0;
+  m.G_q(kDeltaIq, kLq) = 1.0;
+  m.G_q(kIntegralOmega, kPsiF) = 1.0;
+  return m;
+}
+
+// Residual weight vectors v = (G beta - e_U) / L per axis (r = v . z) and their Jacobians.
+template <int N>
+void weights(const Eigen::MatrixXd& G, int voltage_row, const Eigen::VectorXd& beta, int inductance,
+             Eigen::Matrix<double, N, 1>& v, Eigen::Matrix<double, N, Eigen::Dynamic>& J) {
+  const double L = beta(inductance);
+  Eigen::Matrix<double, N, 1> e = G * beta;
+  e(voltage_row) -= 1.0;
+  v = e / L;
+  J = G / L;
+  J.col(inductance) -= e / (L * L);
+}
+}  // namespace
+
+LinearBlockModel LinearBlockModel::paper() {
+  LinearBlockModel m = base(0);
+  m.name = "paper";
+  return m;
+}
+
+LinearBlockModel LinearBlockModel::speedScale() {
+  // beta = {R_s, L_d (Di_d), L_q (Di_q), psi_f (speed term), L_q (speed term), L_d (speed term)}
+  LinearBlockModel m = base(2);
+  m.name = "speed_scale";
+  m.parameter_names.push_back("L_q_speed_term");
+  m.parameter_names.push_back("L_d_speed_term");
+  m.G_d(kIntegralOmegaIq, kLq) = 0.0;
+  m.G_d(kIntegralOmegaIq, 4) = -1.0;
+  m.G_q(kIntegralOmegaId, kLd) = 0.0;
+  m.G_q(kIntegralOmegaId, 5) = 1.0;
+  return m;
+}
+
+LinearBlockModel LinearBlockModel::delay() {
+  LinearBlockModel m = base(1);
+  m.name = "delay";
+  m.parameter_names.push_back("voltage_delay");
+  m.G_d(kIntegralUdStep, 4) = 1.0;
+  m.G_q(kIntegralUqStep, 4) = 1.0;
+  return m;
+}
+
+LinearBlockModel LinearBlockModel::inverter() {
+  LinearBlockModel m = base(1);
+  m.name = "inverter";
+  m.parameter_names.push_back("inverter_voltage");
+  m.G_d(kIntegralIdDirection, 4) = 1.0;
+  m.G_q(kIntegralIqDirection, 4) = 1.0;
+  return m;
+}
+
+void BlockLeastSquares::residuals(const BlockStatistics& stats, const LinearBlockModel& model,
+                                  const Eigen::VectorXd& beta, double& ms_d, double& ms_q, double& diff_ms_d,
+                                  double& diff_ms_q) {
+  Eigen::Matrix<double, kBlockSizeD, 1> vd;
+  Eigen::Matrix<double, kBlockSizeQ, 1> vq;
+  Eigen::Matrix<double, kBlockSizeD, Eigen::Dynamic> Jd;
+  Eigen::Matrix<double, kBlockSizeQ, Eigen::Dynamic> Jq;
+  weights<kBlockSizeD>(model.G_d, kIntegralUd, beta, model.d_inductance, vd, Jd);
+  weights<kBlockSizeQ>(model.G_q, kIntegralUq, beta, model.q_inductance, vq, Jq);
+  ms_d = std::max(0.0, vd.dot(stats.meanProductD() * vd));
+  ms_q = std::max(0.0, vq.dot(stats.meanProductQ() * vq));
+  diff_ms_d = std::max(0.0, vd.dot(stats.meanDifferenceProductD() * vd));
+  diff_ms_q = std::max(0.0, vq.dot(stats.meanDifferenceProductQ() * vq));
+}
+
+BlockFit BlockLeastSquares::fit(const BlockStatistics& stats, const LinearBlockModel& model,
+                                const Eigen::VectorXd& start, const std::vector<bool>& fixed_in,
+                                double variance_inflation) {
+  const int n = model.size();
+  BlockFit out;
+  out.beta = start;
+  out.determined.assign(static_cast<std::size_t>(n), false);
+  out.standard_deviation = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::infinity());
+  if (!stats.hasBlocks() || start.size() != n || !(start(model.d_inductance) > 0) || !(start(model.q_inductance) > 0))
+    return out;
+  std::vector<bool> fixed = fixed_in;
+  fixed.resize(static_cast<std::size_t>(n), false);
+  const ProductD Sd = stats.meanProductD();
+  const ProductQ Sq = stats.meanProductQ();
+
+  Eigen::VectorXd beta = start;
+  Eigen::Matrix<double, kBlockSizeD, 1> vd;
+  Eigen::Matrix<double, kBlockSizeQ, 1> vq;
+  Eigen::Matrix<double, kBlockSizeD, Eigen::Dynamic> Jd;
+  Eigen::Matrix<double, kBlockSizeQ, Eigen::Dynamic> Jq;
+  const auto objective = [&](const Eigen::VectorXd& b) {
+    if (!(b(model.d_inductance) > 0) || !(b(model.q_inductance) > 0)) return std::numeric_limits<double>::infinity();
+    weights<kBlockSizeD>(model.G_d, kIntegralUd, b, model.d_inductance, vd, Jd);
+    weights<kBlockSizeQ>(model.G_q, kIntegralUq, b, model.q_inductance, vq, Jq);
+    return vd.dot(Sd * vd) + vq.dot(Sq * vq);
+  };
+  // Gauss-Newton on the exact residuals r = v(beta) . z, with the normal matrix equilibrated and
+  // pseudo-inverted: eigen-directions the data do not determine get no update.
+  Eigen::MatrixXd A(n, n);
+  Eigen::VectorXd g(n);
+  Eigen::VectorXd scale(n);
+  double f = objective(beta);
+  for (int iteration = 0; iteration < 30; ++iteration) {
+    A = Jd.transpose() * Sd * Jd + Jq.transpose() * Sq * Jq;
+    g = Jd.transpose() * Sd * vd + Jq.transpose() * Sq * vq;
+    double amax = 0.0;
+    for (int j = 0; j < n; ++j) amax = std::max(amax, fixed[j] ? 0.0 : A(j, j));
+    if (!(amax > 0) || !std::isfinite(amax)) break;
+    for (int j = 0; j < n; ++j) scale(j) = fixed[j] || !(A(j, j) > 1e-30 * amax) ? 0.0 : 1.0 / std::sqrt(A(j, j));
+    const Eigen::MatrixXd As = scale.asDiagonal() * A * scale.asDiagonal();
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(As);
+    const Eigen::VectorXd ev = eig.eigenvalues();
+    const double evmax = ev.maxCoeff();
+    Eigen::VectorXd gs = scale.asDiagonal() * g;
+    Eigen::VectorXd coeffs = eig.eigenvectors().transpose() * gs;
+    for (int j = 0; j < n; ++j) coeffs(j) = ev(j) > 1e-10 * evmax ? coeffs(j) / ev(j) : 0.0;
+    Eigen::VectorXd step = -(scale.asDiagonal() * (eig.eigenvectors() * coeffs));
+    // Backtracking keeps the inductances positive and the fitness falling.
+    double t = 1.0;
+    Eigen::VectorXd trial = beta + step;
+    double ft = objective(trial);
+    while (!(ft <= f) && t > 1e-6) {
+      t *= 0.5;
+      trial = beta + t * step;
+      ft = objective(trial);
+    }
+    if (!(ft <= f)) {
+      objective(beta);  // restore v, J at beta
+      break;
+    }
+    const double improvement = f - ft;
+    beta = trial;
+    f = ft;
+    if (improvement <= 1e-14 * f || (step * t).cwiseAbs().maxCoeff() == 0.0) break;
+  }
+  objective(beta);
+  out.beta = beta;
+  out.ok = std::isfinite(f);
+  residuals(stats, model, beta, out.mean_square_d, out.mean_square_q, out.noise_variance_d, out.noise_variance_q);
+  // White noise n on the currents: r_k carries n_k - n_(k-M), and r_k - r_(k-1) carries four
+  // noise terms, so the residual variance that noise explains is half the difference variance.
+  out.noise_variance_d *= 0.5;
+  out.noise_variance_q *= 0.5;
+  if (!stats.hasDifferences()) out.noise_variance_d = out.noise_variance_q = 0.0;
+
+  // Information of the window: effective block count x J^T S J / sigma^2 per axis.
+  const double floor_d = std::max(out.noise_variance_d, 1e-30);
+  const double floor_q = std::max(out.noise_variance_q, 1e-30);
+  A = stats.weight() * (Jd.transpose() * Sd * Jd / floor_d + Jq.transpose() * Sq * Jq / floor_q);
+  // Covariance over the free entries. A direction with (almost) no information makes the entry
+  // that dominates it undetermined; that entry is set aside and the rest are evaluated without it
+  // (e.g. L_d without d-axis excitation leaves R_s, L_q, psi_f determined by the q axis).
+  std::vector<int> free;
+  for (int j = 0; j < n; ++j)
+    if (!fixed[j]) free.push_back(j);
+  while (!free.empty()) {
+    const int m = static_cast<int>(free.size());
+    Eigen::MatrixXd Af(m, m);
+    Eigen::VectorXd s(m);
+    for (int a = 0; a < m; ++a) s(a) = std::max(std::abs(beta(free[a])), 1e-300);
+    for (int a = 0; a < m; ++a)
+      for (int b = 0; b < m; ++b) Af(a, b) = A(free[a], free[b]) * s(a) * s(b);
+    if (!Af.allFinite()) break;
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Af);
+    const Eigen::VectorXd ev = eig.eigenvalues();  // ascending
+    const double evmax = ev(m - 1);
+    if (!(evmax > 0)) break;
+    if (!(ev(0) > 1e-14 * evmax)) {
+      int worst = 0;
+      eig.eigenvectors().col(0).cwiseAbs().maxCoeff(&worst);
+      free.erase(free.begin() + worst);
+      continue;
+    }
+    const Eigen::MatrixXd cov = eig.eigenvectors() * ev.cwiseInverse().asDiagonal() * eig.eigenvectors().transpose();
+    for (int a = 0; a < m; ++a) {
+      out.standard_deviation(free[a]) = std::sqrt(variance_inflation * std::max(0.0, cov(a, a))) * s(a);
+      out.determined[free[a]] = true;
+    }
+    break;
+  }
+  return out;
+}
+
+}  // namespace pmsm_param_id

@@ -1,0 +1,159 @@
+#include "pmsm_param_id/identification/block_statistics.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace pmsm_param_id {
+
+BlockStatistics::BlockStatistics(const WindowSettings& settings) : settings_(settings) {}
+
+void BlockStatistics::reset() {
+  block_samples_ = 0;
+  nominal_period_ = 0.0;
+  ring_.clear();
+  head_ = count_ = 0;
+  S_d_.setZero();
+  S_q_.setZero();
+  dS_d_.setZero();
+  dS_q_.setZero();
+  stored_weight_ = stored_difference_weight_ = 0.0;
+  weight_ = difference_weight_ = 0.0;
+  scale_ = 1.0;
+  blocks_ = 0;
+  have_previous_block_ = false;
+}
+
+void BlockStatistics::configure(double nominal_period) {
+  if (!(nominal_period > 0) || !std::isfinite(nominal_period))
+    throw std::invalid_argument("BlockStatistics: nominal period must be > 0");
+  reset();
+  nominal_period_ = nominal_period;
+  block_samples_ = std::max(1, static_cast<int>(std::lround(settings_.block_length / nominal_period)));
+  lambda_ = std::exp(-nominal_period / settings_.forgetting_time_constant);
+  ring_.resize(static_cast<std::size_t>(block_samples_) + 1);
+}
+
+void BlockStatistics::breakContinuity() {
+  count_ = 0;
+  have_previous_block_ = false;
+}
+
+namespace {
+inline double direction(double a, double b) {
+  const double n = std::hypot(a, b);
+  return n > 0 ? a / n : 0.0;
+}
+}  // namespace
+
+bool BlockStatistics::add(const Sample& s) {
+  if (block_samples_ == 0) throw std::logic_error("BlockStatistics::add before configure()");
+  Cumulative c{};
+  c.t = s.t;
+  c.i_d = s.i_d;
+  c.i_q = s.i_q;
+  c.omega_e = s.omega_e;
+  c.u_d = s.u_d;
+  c.u_q = s.u_q;
+  c.dir_d = direction(s.i_d, s.i_q);
+  c.dir_q = direction(s.i_q, s.i_d);
+  const std::size_t cap = ring_.size();
+  if (count_ > 0) {
+    const Cumulative& p = ring_[(head_ + count_ - 1) % cap];
+    const bool delayed = settings_.voltage_delay_samples > 0;
+    c.applied_d = delayed ? p.u_d : s.u_d;
+    c.applied_q = delayed ? p.u_q : s.u_q;
+    c.applied_prev_d = p.applied_d;
+    c.applied_prev_q = p.applied_q;
+    const double dt = s.t - p.t;
+    const double h = 0.5 * dt;
+    c.I_d = p.I_d + h * (p.i_d + s.i_d);
+    c.I_q = p.I_q + h * (p.i_q + s.i_q);
+    c.OmIq = p.OmIq + h * (p.omega_e * p.i_q + s.omega_e * s.i_q);
+    c.OmId = p.OmId + h * (p.omega_e * p.i_d + s.omega_e * s.i_d);
+    c.Om = p.Om + h * (p.omega_e + s.omega_e);
+    c.U_d = p.U_d + dt * p.applied_d;  // zero-order hold over [t_j, t_j+1)
+    c.U_q = p.U_q + dt * p.applied_q;
+    c.Ustep_d = p.Ustep_d + dt * (p.applied_d - p.applied_prev_d);
+    c.Ustep_q = p.Ustep_q + dt * (p.applied_q - p.applied_prev_q);
+    c.Dir_d = p.Dir_d + h * (p.dir_d + c.dir_d);
+    c.Dir_q = p.Dir_q + h * (p.dir_q + c.dir_q);
+  } else {
+    // First sample of a stretch: with a declared delay the voltage acting now is unknown; the
+    // commanded one stands in for the first period only (one period in a block of M).
+    c.applied_d = c.applied_prev_d = s.u_d;
+    c.applied_q = c.applied_prev_q = s.u_q;
+  }
+  if (count_ == cap) {  // drop the oldest
+    head_ = (head_ + 1) % cap;
+    --count_;
+  }
+  ring_[(head_ + count_) % cap] = c;
+  ++count_;
+  if (count_ < cap) return false;
+
+  const Cumulative& a = ring_[head_];  // M periods back
+  BlockD zd;
+  BlockQ zq;
+  zd << c.i_d - a.i_d, c.I_d - a.I_d, c.OmIq - a.OmIq, c.U_d - a.U_d, c.Ustep_d - a.Ustep_d, c.Dir_d - a.Dir_d;
+  zq << c.i_q - a.i_q, c.I_q - a.I_q, c.OmId - a.OmId, c.U_q - a.U_q, c.Om - a.Om, c.Ustep_q - a.Ustep_q,
+      c.Dir_q - a.Dir_q;
+  // Forgetting: every stored sum is implicitly multiplied by lambda; new terms enter with scale_.
+  scale_ /= lambda_;
+  S_d_.selfadjointView<Eigen::Upper>().rankUpdate(zd, scale_);
+  S_q_.selfadjointView<Eigen::Upper>().rankUpdate(zq, scale_);
+  stored_weight_ += scale_;
+  if (have_previous_block_) {
+    const BlockD dd = zd - last_d_;
+    const BlockQ dq = zq - last_q_;
+    dS_d_.selfadjointView<Eigen::Upper>().rankUpdate(dd, scale_);
+    dS_q_.selfadjointView<Eigen::Upper>().rankUpdate(dq, scale_);
+    stored_difference_weight_ += scale_;
+  }
+  weight_ = stored_weight_ / scale_;
+  difference_weight_ = stored_difference_weight_ / scale_;
+  last_d_ = zd;
+  last_q_ = zq;
+  have_previous_block_ = true;
+  ++blocks_;
+  if (scale_ > 1e150) rescale();
+  // Keep the running integrals small: rebase on the oldest entry once per block length (exact).
+  if (blocks_ % static_cast<std::uint64_t>(cap) == 0) {
+    const Cumulative base = ring_[head_];
+    for (Cumulative& e : ring_) {
+      e.I_d -= base.I_d; e.I_q -= base.I_q; e.OmIq -= base.OmIq; e.OmId -= base.OmId;
+      e.U_d -= base.U_d; e.U_q -= base.U_q; e.Om -= base.Om; e.Ustep_d -= base.Ustep_d;
+      e.Ustep_q -= base.Ustep_q; e.Dir_d -= base.Dir_d; e.Dir_q -= base.Dir_q;
+    }
+  }
+  return true;
+}
+
+void BlockStatistics::rescale() {
+  const double k = 1.0 / scale_;
+  S_d_ *= k;
+  S_q_ *= k;
+  dS_d_ *= k;
+  dS_q_ *= k;
+  stored_weight_ *= k;
+  stored_difference_weight_ *= k;
+  scale_ = 1.0;
+}
+
+ProductD BlockStatistics::meanProductD() const {
+  if (stored_weight_ <= 0) return ProductD::Zero();
+  return ProductD(S_d_.selfadjointView<Eigen::Upper>()) / stored_weight_;
+}
+ProductQ BlockStatistics::meanProductQ() const {
+  if (stored_weight_ <= 0) return ProductQ::Zero();
+  return ProductQ(S_q_.selfadjointView<Eigen::Upper>()) / stored_weight_;
+}
+ProductD BlockStatistics::meanDifferenceProductD() const {
+  if (stored_difference_weight_ <= 0) return ProductD::Zero();
+  return ProductD(dS_d_.selfadjointView<Eigen::Upper>()) / stored_difference_weight_;
+}
+ProductQ BlockStatistics::meanDifferenceProductQ() const {
+  if (stored_difference_weight_ <= 0) return ProductQ::Zero();
+  return ProductQ(dS_q_.selfadjointView<Eigen::Upper>()) / stored_difference_weight_;
+}
+
+}  // namespace pmsm_param_id

@@ -1,0 +1,125 @@
+#include "pmsm_param_id/identification/identifier_config.hpp"
+
+#include "pmsm_param_id/io/yaml_reader.hpp"
+
+namespace pmsm_param_id {
+
+const std::string& methodList() {
+  static const std::string list = "fbdapso, sapso, pso, ekf, rls";
+  return list;
+}
+bool isKnownMethod(const std::string& m) {
+  return m == "fbdapso" || m == "sapso" || m == "pso" || m == "ekf" || m == "rls";
+}
+
+void validate(const IdentifierConfig& c, const std::string& source) {
+  const auto fail = [&](const std::string& key, const std::string& msg) {
+    throw ConfigError(source + ": key '" + key + "': " + msg);
+  };
+  if (!isKnownMethod(c.method)) fail("method", "unknown method '" + c.method + "' (expected " + methodList() + ")");
+  for (int p = 0; p < kParameterCount; ++p) {
+    const std::string name = parameterNames()[p];
+    if (c.search.fixed_bounds) {
+      if (!(c.search.lower[p] > 0)) fail("bounds." + name, "lower bound must be > 0");
+      if (!(c.search.lower[p] < c.search.upper[p])) fail("bounds." + name, "lower bound must be < upper bound");
+      if (c.search.has_initial && !(c.search.initial[p] >= c.search.lower[p] && c.search.initial[p] <= c.search.upper[p]))
+        fail("initial." + name, "must lie inside bounds." + name);
+    }
+    if (c.search.has_initial && !(c.search.initial[p] > 0)) fail("initial." + name, "must be > 0");
+  }
+  if (!(c.search.span_factor > 1)) fail("search.span_factor", "must be > 1");
+  if (c.swarm.particles < 2) fail("swarm.particles", "population must be >= 2");
+  if (c.swarm.reset_iterations < 1) fail("swarm.reset_iterations", "must be >= 1");
+  if (!(c.swarm.v_max > 0 && c.swarm.v_max <= 1)) fail("swarm.v_max", "must be in (0, 1]");
+  if (!(c.swarm.restart_velocity >= 0 && c.swarm.restart_velocity <= c.swarm.v_max))
+    fail("swarm.restart_velocity", "must be in [0, v_max]");
+  if (!(c.swarm.w_min >= 0 && c.swarm.w_min <= c.swarm.w_max)) fail("swarm.w_min", "must be in [0, w_max]");
+  if (!(c.sapso_C1 > 0 && c.sapso_C1 < 1)) fail("sapso.C1", "must be in (0, 1)");
+  if (!(c.fbdapso_C1 > 0 && c.fbdapso_C1 < 1)) fail("fbdapso.C1", "must be in (0, 1)");
+  if (!(c.fbdapso_C2 > 0 && c.fbdapso_C2 < 1)) fail("fbdapso.C2", "must be in (0, 1)");
+  if (!(c.sapso_T1 > 0)) fail("sapso.T1", "must be > 0");
+  if (!(c.fbdapso_T1 > 0)) fail("fbdapso.T1", "must be > 0");
+  if (!(c.fbdapso_T2 >= 0)) fail("fbdapso.T2", "must be >= 0");
+  if (c.iterations_per_sample < 1) fail("swarm.iterations_per_sample", "must be >= 1");
+  if (!(c.window.block_length > 0)) fail("window.block_length", "must be > 0");
+  if (!(c.window.forgetting_time_constant > c.window.block_length))
+    fail("window.forgetting_time_constant", "must be longer than window.block_length");
+  if (c.window.voltage_delay_samples < 0 || c.window.voltage_delay_samples > 1)
+    fail("time.voltage_delay_samples", "must be 0 or 1");
+  if (!(c.time.max_gap_periods > 1)) fail("time.max_gap_periods", "must be > 1");
+  if (!(c.time.sample_period >= 0)) fail("time.sample_period", "must be >= 0 (0 = from the stamps)");
+  if (!(c.assessment.max_relative_uncertainty > 0)) fail("assessment.max_relative_uncertainty", "must be > 0");
+  if (!(c.assessment.max_fit_ratio > 1)) fail("assessment.max_fit_ratio", "must be > 1");
+}
+
+IdentifierConfig loadIdentifierConfig(const std::string& path) {
+  const YamlReader y = YamlReader::fromFile(path);
+  IdentifierConfig c;
+  c.method = y.text("method", c.method);
+  c.seed = static_cast<std::uint64_t>(y.integer("seed", 1, 0, 1L << 53));
+  int bounds_given = 0, initial_given = 0;
+  for (int p = 0; p < kParameterCount; ++p) {
+    const std::string name = parameterNames()[p];
+    if (y.has("bounds." + name)) {
+      const std::vector<double> b = y.numbers("bounds." + name);
+      if (b.size() != 2) y.fail("bounds." + name, "expected [lower, upper]");
+      c.search.lower[p] = b[0];
+      c.search.upper[p] = b[1];
+      ++bounds_given;
+    }
+    if (y.has("initial." + name)) {
+      c.search.initial[p] = y.positive("initial." + name);
+      ++initial_given;
+    }
+  }
+  if (bounds_given != 0 && bounds_given != kParameterCount)
+    y.fail("bounds", "give all four of R_s, L_d, L_q, psi_f or none (none: a data-driven search box)");
+  if (initial_given != 0 && initial_given != kParameterCount)
+    y.fail("initial", "give all four of R_s, L_d, L_q, psi_f or none (none: a data-driven start)");
+  c.search.fixed_bounds = bounds_given == kParameterCount;
+  c.search.has_initial = initial_given == kParameterCount;
+  c.search.span_factor = y.number("search.span_factor", c.search.span_factor);
+  c.window.block_length = y.positive("window.block_length", c.window.block_length);
+  c.window.forgetting_time_constant = y.positive("window.forgetting_time_constant", c.window.forgetting_time_constant);
+  c.swarm.particles = static_cast<int>(y.integer("swarm.particles", c.swarm.particles, 2, 100000));
+  c.swarm.c1 = y.number("swarm.c1", c.swarm.c1);
+  c.swarm.c2 = y.number("swarm.c2", c.swarm.c2);
+  c.swarm.w_max = y.number("swarm.w_max", c.swarm.w_max);
+  c.swarm.w_min = y.number("swarm.w_min", c.swarm.w_min);
+  c.swarm.reset_iterations = static_cast<int>(y.integer("swarm.reset_iterations", c.swarm.reset_iterations, 1, 1000000));
+  c.swarm.v_max = y.number("swarm.v_max", c.swarm.v_max);
+  c.swarm.restart_velocity = y.number("swarm.restart_velocity", c.swarm.restart_velocity);
+  c.iterations_per_sample =
+      static_cast<int>(y.integer("swarm.iterations_per_sample", c.iterations_per_sample, 1, 10000));
+  c.sapso_T1 = y.number("sapso.T1", c.sapso_T1);
+  c.sapso_C1 = y.number("sapso.C1", c.sapso_C1);
+  c.fbdapso_T1 = y.number("fbdapso.T1", c.fbdapso_T1);
+  c.fbdapso_T2 = y.number("fbdapso.T2", c.fbdapso_T2);
+  c.fbdapso_C1 = y.number("fbdapso.C1", c.fbdapso_C1);
+  c.fbdapso_C2 = y.number("fbdapso.C2", c.fbdapso_C2);
+  c.fbdapso_zero_delta = y.positive("fbdapso.zero_delta", c.fbdapso_zero_delta);
+  c.ekf.measurement_sigma = y.number("ekf.measurement_sigma", c.ekf.measurement_sigma);
+  if (c.ekf.measurement_sigma < 0) y.fail("ekf.measurement_sigma", "must be >= 0 (0 = from the data)");
+  c.ekf.process_current_sigma = y.number("ekf.process_current_sigma", c.ekf.process_current_sigma);
+  if (c.ekf.process_current_sigma < 0) y.fail("ekf.process_current_sigma", "must be >= 0 (0 = automatic)");
+  c.ekf.parameter_drift = y.positive("ekf.parameter_drift", c.ekf.parameter_drift);
+  c.ekf.initial_relative_std = y.positive("ekf.initial_relative_std", c.ekf.initial_relative_std);
+  c.rls.time_constant = y.positive("rls.time_constant", c.rls.time_constant);
+  c.rls.initial_covariance = y.positive("rls.initial_covariance", c.rls.initial_covariance);
+  c.assessment.max_relative_uncertainty =
+      y.positive("assessment.max_relative_uncertainty", c.assessment.max_relative_uncertainty);
+  c.assessment.confidence_sigmas = y.positive("assessment.confidence_sigmas", c.assessment.confidence_sigmas);
+  c.assessment.variance_inflation = y.positive("assessment.variance_inflation", c.assessment.variance_inflation);
+  c.assessment.max_fit_ratio = y.positive("assessment.max_fit_ratio", c.assessment.max_fit_ratio);
+  c.assessment.fit_floor_relative = y.positive("assessment.fit_floor_relative", c.assessment.fit_floor_relative);
+  c.assessment.min_relative_uncertainty =
+      y.positive("assessment.min_relative_uncertainty", c.assessment.min_relative_uncertainty);
+  c.time.sample_period = y.number("time.sample_period", c.time.sample_period);
+  c.time.max_gap_periods = y.number("time.max_gap_periods", c.time.max_gap_periods);
+  c.window.voltage_delay_samples = static_cast<int>(y.integer("time.voltage_delay_samples", 0, 0, 1));
+  y.rejectUnknownKeys();
+  validate(c, path);
+  return c;
+}
+
+}  // namespace pmsm_param_id

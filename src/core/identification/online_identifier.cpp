@@ -1,0 +1,224 @@
+#include "pmsm_param_id/identification/online_identifier.hpp"
+
+#include <cmath>
+#include <limits>
+
+namespace pmsm_param_id {
+
+namespace {
+// Starting point of the exact fit before the data say anything, and the stand-in for a parameter
+// the data do not determine yet: the geometric middle of the supported range of motors
+// (20 uH - 200 mH, 0.02 - 20 ohm, 2 mWb - 2 Wb). It only seeds directions the data leave open.
+constexpr ParameterVector kGenericCentre{0.63, 2e-3, 2e-3, 0.063};
+// A parameter may centre the box once the window determines it to within this (1 sigma).
+constexpr double kCentringRelativeStd = 0.3;
+}  // namespace
+
+const char* toString(SampleStatus s) {
+  switch (s) {
+    case SampleStatus::Used: return "used";
+    case SampleStatus::SkippedNonFinite: return "skipped: non-finite value";
+    case SampleStatus::SkippedDuplicate: return "skipped: duplicate time stamp";
+    case SampleStatus::SkippedTooClose: return "skipped: less than a quarter of the sampling period after the previous sample";
+    case SampleStatus::TimeReset: return "time went backwards: identifier reset";
+    case SampleStatus::Gap: return "gap in the stream";
+    case SampleStatus::PeriodChanged: return "the sampling period changed: statistics restarted";
+  }
+  return "?";
+}
+
+ParameterVector OnlineIdentifier::nanVector() {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  return {nan, nan, nan, nan};
+}
+
+OnlineIdentifier::OnlineIdentifier(const IdentifierConfig& config)
+    : config_(config), stats_(config.window), period_(config.time.sample_period) {
+  validate(config_);
+}
+
+double OnlineIdentifier::temperature() const { return std::numeric_limits<double>::quiet_NaN(); }
+
+void OnlineIdentifier::reset() {
+  stats_.reset();
+  period_.reset();
+  held_.clear();
+  box_ = SearchBox{};
+  have_last_ = false;
+  broken_ = true;
+  noise_std_ = 0.0;
+  fit_blocks_ = ~0ull;
+}
+
+SampleStatus OnlineIdentifier::process(const Sample& s) {
+  if (!(std::isfinite(s.t) && std::isfinite(s.u_d) && std::isfinite(s.u_q) && std::isfinite(s.i_d) &&
+        std::isfinite(s.i_q) && std::isfinite(s.omega_e))) {
+    ++counters_.skipped_nonfinite;
+    broken_ = true;
+    stats_.breakContinuity();
+    return SampleStatus::SkippedNonFinite;
+  }
+  SampleStatus status = SampleStatus::Used;
+  if (have_last_) {
+    const double dt = s.t - last_t_;
+    if (dt == 0.0) {
+      ++counters_.skipped_duplicate;
+      return SampleStatus::SkippedDuplicate;
+    }
+    if (dt < 0.0) {
+      const IdentifierCounters kept = counters_;
+      reset();
+      counters_ = kept;
+      ++counters_.time_resets;
+      status = SampleStatus::TimeReset;
+    } else if (period_.addStep(dt)) {
+      if (!held_.empty()) {  // the first nominal period: process the samples held so far
+        stats_.configure(period_.nominal());
+        std::vector<Sample> held;
+        held.swap(held_);
+        bool first = true;
+        for (const Sample& h : held) {
+          if (!first && h.t - last_t_ < 0.25 * period_.nominal()) {
+            ++counters_.skipped_too_close;
+            continue;
+          }
+          if (!first && h.t - last_t_ > config_.time.max_gap_periods * period_.nominal()) {
+            ++counters_.gaps;
+            broken_ = true;
+            stats_.breakContinuity();
+          }
+          processTimed(h, SampleStatus::Used);
+          last_t_ = h.t;
+          first = false;
+        }
+      } else {  // the rate changed: blocks of the new length from here on
+        ++counters_.period_changes;
+        stats_.configure(period_.nominal());
+        broken_ = true;
+        status = SampleStatus::PeriodChanged;
+      }
+    }
+  }
+  if (!period_.known()) {  // hold the sample until the steps give the nominal period
+    held_.push_back(s);
+    have_last_ = true;
+    last_t_ = s.t;
+    return status;
+  }
+  if (!stats_.configured()) stats_.configure(period_.nominal());
+  if (have_last_ && status == SampleStatus::Used) {
+    const double dt = s.t - last_t_;
+    if (dt < 0.25 * period_.nominal()) {
+      ++counters_.skipped_too_close;
+      return SampleStatus::SkippedTooClose;  // last_t_ stays: the next step is measured from the last used sample
+    }
+    if (dt > config_.time.max_gap_periods * period_.nominal()) {
+      ++counters_.gaps;
+      broken_ = true;
+      stats_.breakContinuity();
+      status = SampleStatus::Gap;
+    }
+  }
+  have_last_ = true;
+  last_t_ = s.t;
+  return processTimed(s, status);
+}
+
+SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status) {
+  const bool new_block = stats_.add(s);
+  if (!box_.valid && new_block) tryStart();
+  if (box_.valid) update(s, new_block, broken_);
+  broken_ = false;
+  ++counters_.used;
+  return status;
+}
+
+void OnlineIdentifier::setBox(const ParameterVector& centre) {
+  const double k = config_.search.span_factor;
+  box_.centre = centre;
+  for (int p = 0; p < kParameterCount; ++p) {
+    box_.lower[p] = centre[p] / k;
+    box_.upper[p] = centre[p] * k;
+  }
+  box_.valid = true;
+}
+
+bool OnlineIdentifier::tryStart() {
+  const SearchSettings& search = config_.search;
+  if (search.fixed_bounds) {
+    box_.lower = search.lower;
+    box_.upper = search.upper;
+    for (int p = 0; p < kParameterCount; ++p)
+      box_.centre[p] = search.has_initial ? search.initial[p] : std::sqrt(search.lower[p] * search.upper[p]);
+    box_.valid = true;
+  } else if (search.has_initial) {
+    setBox(search.initial);
+  } else {
+    const FitCheck fit = checkFit(stats_, config_.assessment, kGenericCentre, false);
+    if (!fit.available) return false;
+    const auto usable = [&](int p) {
+      return fit.determined[p] && fit.relative_std[p] <= kCentringRelativeStd && plausible(p, fit.optimum[p]);
+    };
+    if (!usable(kLd) && !usable(kLq)) return false;  // the motor's scale is not known yet
+    ParameterVector centre = kGenericCentre;
+    for (int p = 0; p < kParameterCount; ++p)
+      if (usable(p)) centre[p] = fit.optimum[p];
+    if (!usable(kLd)) centre[kLd] = centre[kLq];
+    if (!usable(kLq)) centre[kLq] = centre[kLd];
+    noise_std_ = std::max(fit.noise_std_d, fit.noise_std_q);
+    setBox(centre);
+  }
+  restart();
+  return true;
+}
+
+bool OnlineIdentifier::refreshSearchBox() {
+  if (!box_.valid || config_.search.fixed_bounds || !stats_.hasBlocks()) return false;
+  const FitCheck fit = checkFit(stats_, config_.assessment, box_.centre, false);
+  if (!fit.available) return false;
+  noise_std_ = std::max(fit.noise_std_d, fit.noise_std_q);
+  const double inner = std::sqrt(config_.search.span_factor);
+  ParameterVector centre = box_.centre;
+  bool moved = false;
+  for (int p = 0; p < kParameterCount; ++p) {
+    const double x = fit.optimum[p];
+    if (!(fit.determined[p] && fit.relative_std[p] <= kCentringRelativeStd && plausible(p, x))) continue;
+    if (x < centre[p] / inner || x > centre[p] * inner) {
+      centre[p] = x;
+      moved = true;
+    }
+  }
+  if (!moved) return false;
+  setBox(centre);
+  searchBoxMoved();
+  return true;
+}
+
+Estimate OnlineIdentifier::estimate() const {
+  Estimate e;
+  e.method = method();
+  e.t = last_t_;
+  e.parameters = parameters();
+  e.iteration = iterations();
+  e.temperature = temperature();
+  e.counters = counters_;
+  e.sample_period = period_.nominal();
+  if (fit_blocks_ != stats_.blocks()) {
+    const ParameterVector start = box_.valid ? box_.centre : kGenericCentre;
+    fit_cache_ = checkFit(stats_, config_.assessment, fit_cache_.available ? fit_cache_.optimum : start, true);
+    if (!fit_cache_.available && fit_cache_.optimum != start) fit_cache_ = checkFit(stats_, config_.assessment, start, true);
+    fit_blocks_ = stats_.blocks();
+  }
+  e.fit = fit_cache_;
+  const Assessment a = assess(e.parameters, e.fit, atBound(), config_.assessment);
+  e.status = a.status;
+  e.reason = a.reason;
+  e.relative_uncertainty = a.relative_uncertainty;
+  for (int p = 0; p < kParameterCount; ++p) e.identifiable[p] = e.status[p] == ParameterStatus::Identified;
+  bool positive = true;
+  for (double v : e.parameters) positive = positive && std::isfinite(v) && v > 0;
+  e.fitness = positive && stats_.hasBlocks() ? stats_.fitness(e.parameters) : std::numeric_limits<double>::quiet_NaN();
+  return e;
+}
+
+}  // namespace pmsm_param_id

@@ -1,0 +1,46 @@
+#include <cmath>
+
+#include "pmsm_param_id/identification/identifiers.hpp"
+
+namespace pmsm_param_id {
+
+RlsIdentifier::RlsIdentifier(const IdentifierConfig& config) : OnlineIdentifier(config) {}
+
+void RlsIdentifier::restart() {
+  for (int p = 0; p < kParameterCount; ++p) theta_(p) = box_.centre[p];
+  P_ = Eigen::Matrix4d::Identity() * config_.rls.initial_covariance;
+  have_last_ = false;
+}
+
+void RlsIdentifier::update(const Sample& s, bool new_block, bool) {
+  const double dt = have_last_ ? s.t - last_t_ : 0.0;
+  last_t_ = s.t;
+  have_last_ = true;
+  if (!new_block) return;
+  const double lambda = std::exp(-dt / config_.rls.time_constant);
+  const BlockD& d = stats_.lastBlockD();  // {Di_d, I_d, W_d, U_d}
+  const BlockQ& q = stats_.lastBlockQ();  // {Di_q, I_q, W_q, U_q, Om}
+  const Eigen::Vector4d phi_d(d(1), d(0), -d(2), 0.0);
+  const Eigen::Vector4d phi_q(q(1), q(2), q(0), q(4));
+  P_ /= lambda;
+  for (const auto& [phi, y] : {std::make_pair(phi_d, d(3)), std::make_pair(phi_q, q(3))}) {
+    const Eigen::Vector4d Pphi = P_ * phi;
+    const double denom = 1.0 + phi.dot(Pphi);
+    const Eigen::Vector4d gain = Pphi / denom;
+    theta_ += gain * (y - phi.dot(theta_));
+    P_ -= gain * Pphi.transpose();
+  }
+  P_ = 0.5 * (P_ + P_.transpose());
+  // Bounded covariance: without excitation (standstill) P grows by 1/lambda every block and
+  // would overflow to inf and NaN; it never needs to exceed its starting size.
+  const double largest = P_.diagonal().maxCoeff();
+  if (!(largest <= config_.rls.initial_covariance)) {
+    if (std::isfinite(largest)) P_ *= config_.rls.initial_covariance / largest;
+    else P_ = Eigen::Matrix4d::Identity() * config_.rls.initial_covariance;
+  }
+  if (!theta_.allFinite()) restart();
+}
+
+ParameterVector RlsIdentifier::current() const { return {theta_(0), theta_(1), theta_(2), theta_(3)}; }
+
+}  // namespace pmsm_param_id

@@ -1,0 +1,56 @@
+#include <stdexcept>
+
+#include "pmsm_param_id/identification/identifiers.hpp"
+
+namespace pmsm_param_id {
+
+std::shared_ptr<const AcceptancePolicy> makeAcceptancePolicy(const IdentifierConfig& c) {
+  if (c.method == "sapso") return std::make_shared<MetropolisAcceptance>(c.sapso_T1, c.sapso_C1);
+  if (c.method == "fbdapso")
+    return std::make_shared<BackfireDoubleAnnealing>(c.fbdapso_T1, c.fbdapso_T2, c.fbdapso_C1, c.fbdapso_C2,
+                                                     c.fbdapso_zero_delta);
+  if (c.method == "pso") return std::make_shared<AlwaysAccept>();
+  throw std::invalid_argument("no acceptance policy for method '" + c.method + "'");
+}
+
+SwarmIdentifier::SwarmIdentifier(const IdentifierConfig& config) : OnlineIdentifier(config) {}
+
+void SwarmIdentifier::restart() {
+  // Particle 0 starts at the configured initial values when there are any (the paper's "far away"
+  // start); otherwise every particle starts at random in the data-driven box.
+  swarm_ = std::make_unique<ParticleSwarm>(config_.swarm, makeAcceptancePolicy(config_), box_.lower, box_.upper,
+                                           config_.seed, config_.search.has_initial ? &config_.search.initial : nullptr);
+}
+
+void SwarmIdentifier::searchBoxMoved() {
+  if (swarm_) swarm_->setBounds(box_.lower, box_.upper);
+}
+
+double SwarmIdentifier::temperature() const {
+  return swarm_ ? swarm_->temperature() : std::numeric_limits<double>::quiet_NaN();
+}
+
+std::array<bool, kParameterCount> SwarmIdentifier::atBound() const {
+  return swarm_ ? swarm_->bestAtBound() : std::array<bool, kParameterCount>{};
+}
+
+void SwarmIdentifier::update(const Sample&, bool, bool) {
+  if (!stats_.hasBlocks() || !swarm_) return;
+  const BlockStatistics& stats = stats_;
+  const auto fitness = [&stats](const ParameterVector& p) { return stats.fitness(p); };
+  for (int i = 0; i < config_.iterations_per_sample; ++i) {
+    swarm_->iterate(fitness);
+    if (swarm_->iterationInCycle() == 0) refreshSearchBox();  // a new cycle: does the box still hold the optimum?
+  }
+}
+
+ParameterVector SwarmIdentifier::current() const { return swarm_ ? swarm_->best() : nanVector(); }
+
+std::unique_ptr<OnlineIdentifier> makeIdentifier(const IdentifierConfig& config) {
+  validate(config);
+  if (config.method == "ekf") return std::make_unique<EkfIdentifier>(config);
+  if (config.method == "rls") return std::make_unique<RlsIdentifier>(config);
+  return std::make_unique<SwarmIdentifier>(config);
+}
+
+}  // namespace pmsm_param_id

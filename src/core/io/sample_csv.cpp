@@ -1,0 +1,125 @@
+#include "pmsm_param_id/io/sample_csv.hpp"
+
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+
+#include "pmsm_param_id/io/config_error.hpp"
+
+namespace pmsm_param_id {
+
+void writeSampleCsv(const std::string& path, const std::vector<SimulatedSample>& samples) {
+  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  FILE* f = std::fopen(tmp.c_str(), "w");
+  if (!f) throw std::runtime_error(path + ": cannot write (" + std::string(std::strerror(errno)) + ")");
+  std::fputs("t,u_d,u_q,i_d,i_q,omega_e,theta_e,R_s,L_d,L_q,psi_f\n", f);
+  for (const SimulatedSample& s : samples) {
+    const Sample& x = s.sample;
+    std::fprintf(f, "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", x.t, x.u_d, x.u_q, x.i_d,
+                 x.i_q, x.omega_e, x.theta_e, s.truth[kRs], s.truth[kLd], s.truth[kLq], s.truth[kPsiF]);
+  }
+  const bool ok = std::ferror(f) == 0;
+  if (std::fclose(f) != 0 || !ok || std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw std::runtime_error(path + ": write failed");
+  }
+}
+
+namespace {
+std::vector<std::string> splitCells(const std::string& line) {
+  std::vector<std::string> cells;
+  std::stringstream ss(line);
+  std::string cell;
+  while (std::getline(ss, cell, ',')) {
+    const auto b = cell.find_first_not_of(" \t\r");
+    const auto e = cell.find_last_not_of(" \t\r");
+    cells.push_back(b == std::string::npos ? std::string() : cell.substr(b, e - b + 1));
+  }
+  if (!line.empty() && line.back() == ',') cells.emplace_back();
+  return cells;
+}
+}  // namespace
+
+SampleLog readSampleCsv(const std::string& path, const LogFormat& format) {
+  format.validate("log format");
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open file");
+  std::string line;
+  std::size_t line_no = 0;
+  // Header: first non-empty line.
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.find_first_not_of(" \t\r") != std::string::npos) break;
+  }
+  if (line_no == 0 || line.find_first_not_of(" \t\r") == std::string::npos)
+    throw InputError(path + ": empty file (expected a header t,u_d,u_q,i_d,i_q,omega_e)");
+  const std::vector<std::string> header = splitCells(line);
+  std::map<std::string, std::size_t> column;
+  for (std::size_t i = 0; i < header.size(); ++i) column[header[i]] = i;
+  const char* required[] = {"t", "u_d", "u_q", "i_d", "i_q", "omega_e"};
+  std::size_t index[6];
+  for (int i = 0; i < 6; ++i) {
+    const std::string& name = format.columns.at(required[i]);
+    const auto it = column.find(name);
+    if (it == column.end())
+      throw InputError(path + ":" + std::to_string(line_no) + ": missing column '" + name + "' for " + required[i] +
+                       " (name the columns with --column or a --format file)");
+    index[i] = it->second;
+  }
+  const auto theta_it = column.find(format.columns.at("theta_e"));
+  const bool has_theta = theta_it != column.end();
+  SampleLog log;
+  std::size_t truth_index[4];
+  log.has_truth = true;
+  for (int p = 0; p < kParameterCount; ++p) {
+    const auto it = column.find(parameterNames()[p]);
+    if (it == column.end()) {
+      log.has_truth = false;
+      break;
+    }
+    truth_index[p] = it->second;
+  }
+  auto number = [&](const std::vector<std::string>& cells, std::size_t i) {
+    const std::string& text = cells[i];
+    char* end = nullptr;
+    errno = 0;
+    const double v = std::strtod(text.c_str(), &end);
+    if (text.empty() || end == text.c_str() || *end != '\0')
+      throw InputError(path + ":" + std::to_string(line_no) + ": column '" + header[i] + "': not a number: '" +
+                       text + "'");
+    return v;  // nan/inf parse and are returned as such
+  };
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    const std::vector<std::string> cells = splitCells(line);
+    if (cells.size() != header.size())
+      throw InputError(path + ":" + std::to_string(line_no) + ": expected " + std::to_string(header.size()) +
+                       " cells, found " + std::to_string(cells.size()));
+    Sample s;
+    s.t = number(cells, index[0]) * format.timeFactor();
+    s.u_d = number(cells, index[1]) * format.voltageFactor();
+    s.u_q = number(cells, index[2]) * format.voltageFactor();
+    s.i_d = number(cells, index[3]) * format.currentFactor();
+    s.i_q = number(cells, index[4]) * format.currentFactor();
+    s.omega_e = number(cells, index[5]) * format.speedFactor();
+    if (has_theta) s.theta_e = number(cells, theta_it->second) * format.angleFactor();
+    log.samples.push_back(s);
+    log.line_numbers.push_back(line_no);
+    if (log.has_truth) {
+      ParameterVector p{};
+      for (int j = 0; j < kParameterCount; ++j) p[j] = number(cells, truth_index[j]);
+      log.truth.push_back(p);
+    }
+  }
+  return log;
+}
+
+}  // namespace pmsm_param_id

@@ -1,0 +1,56 @@
+#include "pmsm_param_id/simulation/scenario.hpp"
+
+#include <cmath>
+
+#include "pmsm_param_id/io/yaml_reader.hpp"
+
+namespace pmsm_param_id {
+
+Scenario loadScenario(const std::string& path) {
+  const YamlReader y = YamlReader::fromFile(path);
+  Scenario s;
+  s.name = y.text("name", path);
+  if (!y.has("motor.pole_pairs")) y.fail("motor.pole_pairs", "missing");
+  const long pole_pairs = y.integer("motor.pole_pairs", -1, 1, 1000);
+  s.motor.pole_pairs = static_cast<int>(pole_pairs);
+  s.motor.R_s = y.positive("motor.R_s");
+  s.motor.L_d = y.positive("motor.L_d");
+  s.motor.L_q = y.positive("motor.L_q");
+  s.motor.psi_f = y.positive("motor.psi_f");
+  s.motor.inertia = y.positive("motor.inertia");
+  s.motor.friction = y.number("motor.friction");
+  if (s.motor.friction < 0) y.fail("motor.friction", "must be >= 0");
+
+  s.drive.sample_period = y.positive("drive.sample_period");
+  if (s.drive.sample_period < 1e-7 || s.drive.sample_period > 1e-2)
+    y.fail("drive.sample_period", "must be between 1e-7 s (10 MHz) and 1e-2 s (100 Hz)");
+  const long substeps = y.integer("drive.integration_substeps", 10, 1, 10000);
+  s.drive.integration_substeps = static_cast<int>(substeps);
+  s.drive.dc_bus_voltage = y.positive("drive.dc_bus_voltage");
+  s.drive.max_current = y.positive("drive.max_current");
+  s.drive.current_loop_bandwidth_hz = y.positive("drive.current_loop_bandwidth_hz", 1000.0);
+  s.drive.speed_loop_bandwidth_hz = y.positive("drive.speed_loop_bandwidth_hz", 20.0);
+  if (s.drive.current_loop_bandwidth_hz * s.drive.sample_period > 0.25)
+    y.fail("drive.current_loop_bandwidth_hz", "too high for the sampling period (keep bandwidth * T_s <= 0.25)");
+
+  s.sensors.current_noise_sigma = y.number("sensors.current_noise_sigma", 0.0);
+  if (s.sensors.current_noise_sigma < 0) y.fail("sensors.current_noise_sigma", "must be >= 0");
+  const long bits = y.integer("sensors.adc_bits", 0, 0, 32);
+  s.sensors.adc_bits = static_cast<int>(bits);
+  s.sensors.adc_range = y.positive("sensors.adc_range", 50.0);
+
+  s.duration = y.positive("run.duration");
+  if (s.duration / s.drive.sample_period > 1e9) y.fail("run.duration", "more than 1e9 samples");
+  const long seed = y.integer("run.seed", 1, 0, 1L << 53);
+  s.seed = static_cast<uint64_t>(seed);
+
+  s.speed_reference_rpm = y.profile("profiles.speed_rpm");
+  s.load_torque = y.profile("profiles.load_torque");
+  s.d_current_injection = y.profile("profiles.d_current_injection", Profile::constant(0.0));
+  s.R_s_scale = y.profile("profiles.R_s_scale", Profile::constant(1.0));
+  s.psi_f_scale = y.profile("profiles.psi_f_scale", Profile::constant(1.0));
+  y.rejectUnknownKeys();
+  return s;
+}
+
+}  // namespace pmsm_param_id

@@ -1,0 +1,352 @@
+// "Identified" means right within the stated uncertainty, on any motor, with no configuration;
+// a model that does not fit is said so, with its likely cause; no stamp glitch breaks timing.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "pmsm_param_id/identification/identifiers.hpp"
+#include "pmsm_param_id/identification/metrics.hpp"
+#include "pmsm_param_id/identification/online_identifier.hpp"
+#include "pmsm_param_id/io/config_error.hpp"
+#include "pmsm_param_id/io/log_format.hpp"
+#include "pmsm_param_id/io/sample_csv.hpp"
+#include "test_helpers.hpp"
+
+using namespace pmsm_param_id;
+
+namespace {
+std::vector<SimulatedSample> drive(const char* file, std::uint64_t seed = 1, double duration = 0.3) {
+  Scenario s = test_helpers::scenario(file);
+  s.seed = seed;
+  s.duration = duration;
+  return test_helpers::run(s);
+}
+Estimate identify(const std::vector<Sample>& samples, const std::string& method, IdentifierConfig c = {},
+                  std::uint64_t seed = 1) {
+  c.method = method;
+  c.seed = seed;
+  auto id = makeIdentifier(c);
+  for (const auto& s : samples) id->process(s);
+  return id->estimate();
+}
+std::vector<Sample> samplesOf(const std::vector<SimulatedSample>& data) {
+  std::vector<Sample> out;
+  for (const auto& d : data) out.push_back(d.sample);
+  return out;
+}
+}  // namespace
+
+// Three motors two to three decades apart, no identifier configuration: every parameter reported
+// identified is within 1 % of the truth (the stated uncertainty is <= 1 %), over 10 seeds, for
+// every method; the inductances and the flux are identified in every seed by the swarm and RLS.
+class AnyMotor : public ::testing::TestWithParam<const char*> {};
+TEST_P(AnyMotor, IdentifiedMeansWithinTheStatedUncertaintyWithNoConfig) {
+  for (std::uint64_t seed = 1; seed <= 10; ++seed) {
+    const auto data = drive(GetParam(), seed);
+    const ParameterVector truth = data.back().truth;
+    for (const char* method : {"fbdapso", "sapso", "pso", "ekf", "rls"}) {
+      const Estimate e = identify(samplesOf(data), method, {}, seed);
+      for (int p = 0; p < kParameterCount; ++p) {
+        const double err = std::abs(errorPercent(e.parameters[p], truth[p]));
+        if (e.identifiable[p]) {
+          EXPECT_LE(err, 100.0 * e.relative_uncertainty[p] + 1e-9)
+              << GetParam() << " seed " << seed << " " << method << " " << parameterNames()[p];
+          EXPECT_LT(err, 1.0) << GetParam() << " seed " << seed << " " << method << " " << parameterNames()[p];
+        }
+      }
+      if (std::string(method) == "fbdapso" || std::string(method) == "rls")
+        for (int p : {kLd, kLq, kPsiF}) EXPECT_TRUE(e.identifiable[p]) << GetParam() << " " << method << " " << e.reason[p];
+    }
+  }
+}
+INSTANTIATE_TEST_SUITE_P(Motors, AnyMotor, ::testing::Values("robot_joint.yaml", "wc1_drive.yaml", "industrial.yaml"));
+
+TEST(Assessment, NoiseLevelIsEstimatedFromTheData) {
+  const Estimate e = identify(samplesOf(drive("wc1_drive.yaml")), "rls");
+  // 0.03 A of noise plus 12-bit quantisation (LSB 24 mA: 7 mA rms) = 0.031 A.
+  EXPECT_NEAR(e.fit.noise_std_d, 0.031, 0.003);
+  EXPECT_NEAR(e.fit.noise_std_q, 0.031, 0.003);
+  EXPECT_TRUE(e.fit.consistent);
+  EXPECT_LT(e.fit.fit_ratio_d, 2.0);
+  EXPECT_LT(e.fit.fit_ratio_q, 2.0);
+}
+
+TEST(Assessment, SpeedLoggedInRpmIsAPoorFitWithItsCause) {
+  auto samples = samplesOf(drive("wc1_drive.yaml"));
+  for (auto& s : samples) s.omega_e *= 60.0 / (2.0 * M_PI) / 4.0;  // mechanical rpm of the 4-pole-pair motor
+  for (const char* method : {"fbdapso", "rls", "ekf"}) {
+    const Estimate e = identify(samples, method);
+    for (int p = 0; p < kParameterCount; ++p) {
+      EXPECT_FALSE(e.identifiable[p]) << method << " " << parameterNames()[p];
+      EXPECT_EQ(e.status[p], ParameterStatus::PoorFit) << method << " " << e.reason[p];
+    }
+    EXPECT_NE(e.fit.likely_cause.find("rpm"), std::string::npos) << e.fit.likely_cause;
+    EXPECT_NE(e.fit.likely_cause.find("4 pole pairs"), std::string::npos) << e.fit.likely_cause;
+  }
+}
+
+TEST(Assessment, MechanicalSpeedIsAPoorFitWithItsCause) {
+  auto samples = samplesOf(drive("wc1_drive.yaml"));
+  for (auto& s : samples) s.omega_e /= 4.0;
+  const Estimate e = identify(samples, "fbdapso");
+  for (int p = 0; p < kParameterCount; ++p) EXPECT_EQ(e.status[p], ParameterStatus::PoorFit) << e.reason[p];
+  EXPECT_NE(e.fit.likely_cause.find("mechanical speed"), std::string::npos) << e.fit.likely_cause;
+  EXPECT_NE(e.fit.likely_cause.find("pole pairs 4"), std::string::npos) << e.fit.likely_cause;
+}
+
+// Most drives apply the voltage computed at t_k from t_k+1 on. Emulated on simulated data: row k
+// of the log holds the voltage that acted on [t_k+1, t_k+2).
+TEST(Assessment, VoltageOneSampleLateIsAPoorFitUntilTheDelayIsDeclared) {
+  const auto data = drive("wc1_drive.yaml");
+  auto samples = samplesOf(data);
+  for (std::size_t k = 0; k + 1 < samples.size(); ++k) {
+    samples[k].u_d = samples[k + 1].u_d;
+    samples[k].u_q = samples[k + 1].u_q;
+  }
+  samples.pop_back();
+  const Estimate e = identify(samples, "rls");
+  for (int p = 0; p < kParameterCount; ++p) EXPECT_FALSE(e.identifiable[p]) << e.reason[p];
+  EXPECT_NE(e.fit.likely_cause.find("later than declared"), std::string::npos) << e.fit.likely_cause;
+  IdentifierConfig declared;
+  declared.window.voltage_delay_samples = 1;
+  for (const char* method : {"rls", "fbdapso"}) {
+    const Estimate d = identify(samples, method, declared);
+    EXPECT_TRUE(d.fit.consistent) << method;
+    for (int p = 0; p < kParameterCount; ++p)
+      EXPECT_LT(std::abs(errorPercent(d.parameters[p], data.back().truth[p])), 1.0) << method << " " << parameterNames()[p];
+  }
+}
+
+TEST(Assessment, FixedBoundsAwayFromTheMotorGiveAtBoundNeverIdentified) {
+  IdentifierConfig c;
+  c.search.fixed_bounds = true;
+  c.search.lower = {0.5, 0.5e-3, 20e-3, 0.02};  // L_q's box excludes the true 13.5 mH
+  c.search.upper = {10.0, 30e-3, 30e-3, 0.6};
+  const Estimate e = identify(samplesOf(drive("wc1_drive.yaml")), "fbdapso", c);
+  EXPECT_EQ(e.status[kLq], ParameterStatus::AtBound) << e.reason[kLq];
+  EXPECT_FALSE(e.identifiable[kLq]);
+}
+
+TEST(Assessment, ImplausibleValuesAreNeverIdentified) {
+  FitCheck fit;
+  fit.available = true;
+  fit.consistent = true;
+  fit.determined.fill(true);
+  fit.optimum = {1.0, -1e-3, 1e-3, 0.1};
+  fit.relative_std = {1e-4, 1e-4, 1e-4, 1e-4};
+  const Assessment a =
+      assess({1.0, -1e-3, 1e-3, std::numeric_limits<double>::quiet_NaN()}, fit, {}, AssessmentSettings{});
+  EXPECT_EQ(a.status[kRs], ParameterStatus::Identified);
+  EXPECT_EQ(a.status[kLd], ParameterStatus::Implausible);
+  EXPECT_EQ(a.status[kPsiF], ParameterStatus::Implausible);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Timing
+
+TEST(Timing, SecondRowOneNanosecondAfterTheFirstChangesNothing) {
+  const auto data = drive("wc1_drive.yaml");
+  auto samples = samplesOf(data);
+  Sample glitch = samples[0];
+  glitch.t += 1e-9;
+  samples.insert(samples.begin() + 1, glitch);
+  IdentifierConfig c;
+  c.method = "fbdapso";
+  auto id = makeIdentifier(c);
+  for (const auto& s : samples) id->process(s);
+  const Estimate e = id->estimate();
+  EXPECT_NEAR(e.sample_period, 1e-4, 1e-12);
+  EXPECT_EQ(e.counters.skipped_too_close, 1u);
+  EXPECT_EQ(e.counters.gaps, 0u);
+  for (int p = 0; p < kParameterCount; ++p) {
+    EXPECT_TRUE(e.identifiable[p]) << e.reason[p];
+    EXPECT_LT(std::abs(errorPercent(e.parameters[p], data.back().truth[p])), 1.0);
+  }
+}
+
+// The pipeline with a NaN, a time reset and a forward jump ends within 1 % of the truth.
+TEST(Timing, NanResetAndForwardJumpStillEndWithinOnePercent) {
+  const auto data = drive("wc1_drive.yaml", 3, 0.6);
+  std::vector<Sample> samples;
+  for (std::size_t k = 0; k < data.size(); ++k) {
+    Sample s = data[k].sample;
+    if (k == 1000) s.i_d = std::numeric_limits<double>::quiet_NaN();
+    if (k >= 2000) s.t -= 0.15;  // the clock jumps back (reset) ...
+    if (k >= 2001) s.t += 10.0;  // ... and then forward
+    samples.push_back(s);
+  }
+  for (const char* method : {"fbdapso", "rls"}) {
+    IdentifierConfig c;
+    c.method = method;
+    auto id = makeIdentifier(c);
+    for (const auto& s : samples) id->process(s);
+    const Estimate e = id->estimate();
+    EXPECT_EQ(e.counters.skipped_nonfinite, 1u);
+    EXPECT_EQ(e.counters.time_resets, 1u);
+    EXPECT_EQ(e.counters.gaps, 1u);
+    EXPECT_NEAR(e.sample_period, 1e-4, 1e-12);
+    for (int p = 0; p < kParameterCount; ++p)
+      EXPECT_LT(std::abs(errorPercent(e.parameters[p], data.back().truth[p])), 1.0)
+          << method << " " << parameterNames()[p];
+  }
+}
+
+TEST(Timing, ADecimatedStreamIsReBlockedAtItsNewRate) {
+  const auto data = drive("wc1_drive.yaml", 1, 0.6);
+  std::vector<Sample> samples;
+  for (std::size_t k = 0; k < data.size(); ++k)
+    if (k < 1000 || k % 2 == 0) samples.push_back(data[k].sample);
+  IdentifierConfig c;
+  c.method = "rls";
+  auto id = makeIdentifier(c);
+  for (const auto& s : samples) id->process(s);
+  const Estimate e = id->estimate();
+  EXPECT_EQ(e.counters.period_changes, 1u);
+  EXPECT_NEAR(e.sample_period, 2e-4, 1e-12);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Baselines never give NaN or a negative inductance.
+
+TEST(Baselines, AStandstillMinuteLeavesRlsAndEkfWorking) {
+  const auto data = drive("wc1_drive.yaml", 1, 0.3);
+  for (const char* method : {"rls", "ekf"}) {
+    IdentifierConfig c;
+    c.method = method;
+    auto id = makeIdentifier(c);
+    for (const auto& d : data) id->process(d.sample);
+    // 60 s of standstill with no current: without a bounded covariance, RLS's P grows by e^1200.
+    double t = data.back().sample.t;
+    for (int k = 0; k < 600000; ++k) {
+      t += 1e-4;
+      id->process(Sample{t, 0.0, 0.0, 0.0, 0.0, 0.0});
+    }
+    for (double v : id->parameters()) EXPECT_TRUE(std::isfinite(v) && v > 0) << method;
+    // The drive starts again: the same parameters are found again.
+    const auto again = drive("wc1_drive.yaml", 2, 0.3);
+    for (const auto& d : again) {
+      Sample s = d.sample;
+      s.t += t + 1e-4;
+      id->process(s);
+    }
+    const Estimate e = id->estimate();
+    for (int p = 0; p < kParameterCount; ++p) {
+      EXPECT_TRUE(std::isfinite(e.parameters[p])) << method;
+      if (std::string(method) == "rls")
+        EXPECT_LT(std::abs(errorPercent(e.parameters[p], again.back().truth[p])), 1.0) << parameterNames()[p];
+    }
+  }
+}
+
+TEST(Baselines, EkfJacobianMatchesFiniteDifferences) {
+  EkfState x;
+  x << 1.3, 7.9, 2.9, 4.4e-3, 13.1e-3, 0.175;
+  const Sample k{0.0, -40.0, 120.0, 1.2, 8.0, 420.0};
+  const double T = 1e-4;
+  EkfJacobian F;
+  ekfPredict(x, k, T, &F);
+  for (int j = 0; j < 6; ++j) {
+    const double h = 1e-6 * std::max(1.0, std::abs(x(j))) * (j >= 3 ? 1e-3 : 1.0);
+    EkfState xp = x, xm = x;
+    xp(j) += h;
+    xm(j) -= h;
+    const EkfState numeric = (ekfPredict(xp, k, T, nullptr) - ekfPredict(xm, k, T, nullptr)) / (2 * h);
+    for (int i = 0; i < 6; ++i) EXPECT_NEAR(F(i, j), numeric(i), 1e-6 * std::max(1.0, std::abs(numeric(i)))) << i << "," << j;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Strict inputs
+
+namespace {
+std::string loadError(const std::string& text, bool scenario) {
+  const std::string path = test_helpers::writeTemp("strict.yaml", text);
+  try {
+    if (scenario) loadScenario(path);
+    else loadIdentifierConfig(path);
+  } catch (const ConfigError& e) {
+    const std::string m = e.what();
+    return m.substr(path.size() + 2);
+  }
+  return "no error";
+}
+std::string scenarioWith(const std::string& old_text, const std::string& new_text) {
+  std::ifstream in(test_helpers::sourcePath("config/scenarios/wc1_drive.yaml"));
+  std::string s((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto at = s.find(old_text);
+  EXPECT_NE(at, std::string::npos) << old_text;
+  return s.replace(at, old_text.size(), new_text);
+}
+}  // namespace
+
+TEST(StrictInputs, UnknownKeysNameTheNearestKnownOne) {
+  EXPECT_EQ(loadError(scenarioWith("current_noise_sigma:", "current_noise:"), true),
+            "key 'sensors.current_noise': unknown key (did you mean 'sensors.current_noise_sigma'?)");
+  EXPECT_EQ(loadError("window:\n  block_lenght: 0.005\n", false),
+            "key 'window.block_lenght': unknown key (did you mean 'window.block_length'?)");
+  EXPECT_EQ(loadError("swarm:\n  particles: 20\nfbdapso:\n  T3: 1\n", false),
+            "key 'fbdapso.T3': unknown key (did you mean 'fbdapso.T1'?)");
+}
+
+TEST(StrictInputs, IntegersAreRangeChecked) {
+  EXPECT_EQ(loadError(scenarioWith("pole_pairs: 4 ", "pole_pairs: 1e10 "), true),
+            "key 'motor.pole_pairs': must be an integer in [1, 1000], got 1e10");
+  EXPECT_EQ(loadError("swarm:\n  particles: 2.5\n", false), "key 'swarm.particles': expected an integer, got 2.5");
+  EXPECT_EQ(loadError("time:\n  voltage_delay_samples: 3\n", false),
+            "key 'time.voltage_delay_samples': must be an integer in [0, 1], got 3");
+}
+
+TEST(StrictInputs, PartialBoundsAreRefused) {
+  EXPECT_EQ(loadError("bounds:\n  R_s: [1, 2]\n", false),
+            "key 'bounds': give all four of R_s, L_d, L_q, psi_f or none (none: a data-driven search box)");
+}
+
+TEST(StrictInputs, EveryShippedIdentifierConfigLoads) {
+  for (const char* f : {"default.yaml", "paper.yaml"})
+    EXPECT_NO_THROW(loadIdentifierConfig(test_helpers::sourcePath(std::string("config/identifiers/") + f))) << f;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Logs from other drives
+
+TEST(LogFormat, RpmMilliampsAndPowerInvariantLogsReadAsSi) {
+  const std::string path = test_helpers::writeTemp(
+      "other_drive.csv", "time_ms,vd,vq,id_mA,iq_mA,rpm,angle\n0,1.5,3,300,600,60,90\n0.1,1.5,3,300,600,60,90\n");
+  LogFormat f;
+  f.columns = {{"t", "time_ms"}, {"u_d", "vd"}, {"u_q", "vq"}, {"i_d", "id_mA"},
+               {"i_q", "iq_mA"}, {"omega_e", "rpm"}, {"theta_e", "angle"}};
+  f.time_unit = "ms";
+  f.current_unit = "mA";
+  f.speed_unit = "rpm";
+  f.angle_unit = "deg";
+  f.pole_pairs = 4;
+  f.dq_scaling = "power_invariant";
+  const SampleLog log = readSampleCsv(path, f);
+  ASSERT_EQ(log.samples.size(), 2u);
+  const Sample& s = log.samples[1];
+  const double k = std::sqrt(2.0 / 3.0);
+  EXPECT_DOUBLE_EQ(s.t, 1e-4);
+  EXPECT_NEAR(s.u_d, 1.5 * k, 1e-12);
+  EXPECT_NEAR(s.i_q, 0.6 * k, 1e-12);
+  EXPECT_NEAR(s.omega_e, 60.0 * 2.0 * M_PI / 60.0 * 4, 1e-12);
+  EXPECT_NEAR(s.theta_e, M_PI / 2, 1e-12);
+  f.pole_pairs = 0;
+  try {
+    readSampleCsv(path, f);
+    ADD_FAILURE();
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "log format: key 'pole_pairs': needed (>= 1) to turn a mechanical speed (rpm) into the electrical one");
+  }
+}
+
+TEST(LogFormat, ThetaIsCarriedThroughCsv) {
+  const auto data = drive("wc1_drive.yaml", 1, 0.01);
+  const std::string path = ::testing::TempDir() + "theta.csv";
+  writeSampleCsv(path, data);
+  const SampleLog log = readSampleCsv(path);
+  ASSERT_EQ(log.samples.size(), data.size());
+  for (std::size_t k = 0; k < data.size(); ++k) EXPECT_EQ(log.samples[k].theta_e, data[k].sample.theta_e);
+  EXPECT_TRUE(std::isfinite(log.samples.back().theta_e));
+}
