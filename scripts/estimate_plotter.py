@@ -17,6 +17,15 @@ Publishes ~markers (visualization_msgs/MarkerArray).
 import math
 from collections import deque
 
+STATUS_CONSTANTS = ("NO_DATA", "IDENTIFIED", "NOT_EXCITED", "POOR_FIT", "AT_BOUND", "IMPLAUSIBLE", "NOT_CONVERGED")
+
+
+def report_status_names(msg):
+    """Per-parameter status names from the codes, named by ParameterEstimate.msg's own constants."""
+    names = {getattr(type(msg), c, i): c.lower() for i, c in enumerate(STATUS_CONSTANTS)}
+    codes = list(getattr(msg, "status", []) or [])
+    return [names.get(c, "status %d" % c) for c in codes] if len(codes) == 4 else None
+
 PARAMS = ["R_s", "L_d", "L_q", "psi_f"]
 UNITS = {"R_s": "ohm", "L_d": "H", "L_q": "H", "psi_f": "Wb"}
 METHODS = ["fbdapso", "sapso", "pso", "ekf", "rls"]
@@ -38,10 +47,13 @@ class PlotState:
         self.methods = list(methods)
         self.series = {m: deque() for m in self.methods}  # (t, values, identifiable, fitness)
         self.truth = deque()                                 # (t, values)
+        self.status = {}                                     # method: latest status names
 
-    def add_estimate(self, method, t, values, identifiable, fitness):
+    def add_estimate(self, method, t, values, identifiable, fitness, status=None):
         if method not in self.series:
             return
+        if status is not None:
+            self.status[method] = list(status)
         s = self.series[method]
         if s and t < s[-1][0]:  # stamps went backwards (bag loop): start over
             s.clear()
@@ -184,7 +196,7 @@ def build_markers(state, frame_id="plot", stamp=None):
             if state.truth:
                 label += " (%+.2f %%)" % (100.0 * (v[i] / state.truth[-1][1][i] - 1.0))
             if not ok[i]:
-                label += " not identifiable"
+                label += " " + (state.status[m][i] if m in state.status else "not identified")
             text(p + "/legend", ox + PANEL_W + 0.3 + 0.5 * 0.6 * LEGEND_SIZE * len(label),
                  oy + PANEL_H - 0.35 - 0.5 * row, label, LEGEND_SIZE, COLORS.get(m, (0, 0, 0)) if ok[i] else GREY)
             row += 1
@@ -233,7 +245,7 @@ def main():
 
     def on_estimate(msg):
         state.add_estimate(msg.method, seconds(msg.header.stamp), (msg.R_s, msg.L_d, msg.L_q, msg.psi_f),
-                           msg.identifiable, msg.fitness)
+                           msg.identifiable, msg.fitness, report_status_names(msg))
 
     def on_truth(msg):
         state.add_truth(seconds(msg.header.stamp), (msg.R_s, msg.L_d, msg.L_q, msg.psi_f))

@@ -125,13 +125,26 @@ def detect_condition(data):
     return None
 
 
+STATUS_CONSTANTS = ("NO_DATA", "IDENTIFIED", "NOT_EXCITED", "POOR_FIT", "AT_BOUND", "IMPLAUSIBLE", "NOT_CONVERGED")
+
+
+def status_names(msg):
+    """Per-parameter status names, named by ParameterEstimate.msg's own constants."""
+    codes = list(getattr(msg, "status", []) or [])
+    if len(codes) != 4:  # bags recorded before statuses existed
+        return ["identified" if ok else "not_identified" for ok in msg.identifiable]
+    names = {getattr(type(msg), c, i): c.lower() for i, c in enumerate(STATUS_CONSTANTS)}
+    return [names.get(c, "status %d" % c) for c in codes]
+
+
 def summarize(data):
     """{method: dict(final values, errors, identifiable, recognition time, fitness)} from the bag."""
     out = {}
     for method, trace in data.estimates.items():
         t, last = trace[-1]
         true = truth_at(data, t)
-        row = {"values": values(last), "identifiable": list(last.identifiable), "fitness": last.fitness,
+        row = {"values": values(last), "identifiable": list(last.identifiable), "status": status_names(last),
+               "likely_cause": getattr(last, "fit_likely_cause", ""), "fitness": last.fitness,
                "samples": last.samples_used, "skipped": last.samples_skipped, "t": t}
         row["errors"] = [100.0 * (v - p) / p for v, p in zip(row["values"], true)] if true else None
         row["recognition_time"] = recognition_time(data, trace)
@@ -152,7 +165,7 @@ def write_markdown(path, bag_path, data, summary, paper, condition):
         lines += ["Nothing to tabulate.", ""]
     else:
         true = data.truth[-1][1] if data.truth else None
-        lines += ["Final estimates (value, error against truth in %%, identifiable flag). %s" % (
+        lines += ["Final estimates (value, error against truth in %%, status when not identified). %s" % (
             "Paper columns: the seed paper's table for %s (mean of 5 runs, T_s = 1e-6 s)." % condition
             if paper else "No paper condition matches this run."), ""]
         header = ["Parameter", "truth"] + methods + (["paper " + m for m in methods if m in paper])
@@ -163,7 +176,7 @@ def write_markdown(path, bag_path, data, summary, paper, condition):
                 s = summary[m]
                 err = s["errors"][i] if s["errors"] else None
                 cells.append("%s (%s %%)%s" % (fmt(s["values"][i], ".6g"), fmt(err, "+.3f"),
-                                               "" if s["identifiable"][i] else " not identifiable"))
+                                               "" if s["identifiable"][i] else " **" + s["status"][i] + "**"))
             for m in methods:
                 if m in paper:
                     cells.append("%s (%s %%)" % (paper[m][p], paper[m][p + "_err"]))
@@ -177,8 +190,11 @@ def write_markdown(path, bag_path, data, summary, paper, condition):
         cells = ["samples used / skipped", ""] + ["%d / %d" % (summary[m]["samples"], summary[m]["skipped"]) for m in methods]
         cells += ["" for m in methods if m in paper]
         lines.append("| " + " | ".join(cells) + " |")
-        lines += ["", "Recognition time: the first time after which every parameter flagged identifiable at the end "
+        lines += ["", "Recognition time: the first time after which every parameter identified at the end "
                   "stays within 1 % of truth (doc/algorithm.md). The paper's fitness is on its own scale.", ""]
+        causes = ["- %s: %s" % (m, summary[m]["likely_cause"]) for m in methods if summary[m]["likely_cause"]]
+        if causes:
+            lines += ["The model does not fit the data; likely cause:"] + causes + [""]
     lines += ["Figures: " + ", ".join("[%s](%s.png)" % (p, p) for p in PARAMS) + ", [fitness](fitness.png)", ""]
     with open(path, "w") as f:
         f.write("\n".join(lines))
@@ -209,7 +225,7 @@ def draw(out_dir, data):
             ax.set_ylim(ref * 0.8, ref * 1.2)
         ax.set_xlabel("time [s]")
         ax.set_ylabel("%s [%s]" % (p, UNITS[p]))
-        ax.set_title("%s: estimates against truth (grey dots: not identifiable)" % p)
+        ax.set_title("%s: estimates against truth (grey dots: not identified)" % p)
         ax.grid(True, alpha=0.3)
         if ax.get_legend_handles_labels()[0]:
             ax.legend(loc="upper right", fontsize=8)
@@ -258,6 +274,10 @@ def main(argv=None):
     for m in data.missing:
         print("warning: %s: %s" % (args.bag, m), file=sys.stderr)
     print("report: " + report)
+    if not data.estimates:  # what exists is drawn, but a report without estimates is a failed report
+        print("error: %s: no ParameterEstimate messages: nothing was identified (is an identifier "
+              "recording to this bag?)" % args.bag, file=sys.stderr)
+        return 2
     return 0
 
 

@@ -350,3 +350,18 @@ TEST(LogFormat, ThetaIsCarriedThroughCsv) {
   for (std::size_t k = 0; k < data.size(); ++k) EXPECT_EQ(log.samples[k].theta_e, data[k].sample.theta_e);
   EXPECT_TRUE(std::isfinite(log.samples.back().theta_e));
 }
+
+// A node asks for an estimate after every sample, from the first one on, before any method starts.
+TEST(OnlineIdentifier, EstimateIsSafeBeforeTheMethodStarts) {
+  const auto data = drive("wc1_drive.yaml", 1, 0.02);
+  for (const char* method : {"fbdapso", "sapso", "pso", "ekf", "rls"}) {
+    IdentifierConfig c;
+    c.method = method;
+    auto id = makeIdentifier(c);
+    Estimate e = id->estimate();
+    EXPECT_EQ(e.method, method);
+    EXPECT_EQ(e.status[kLq], ParameterStatus::NoData);
+    for (const auto& d : data) e = (id->process(d.sample), id->estimate());
+    EXPECT_TRUE(std::isfinite(e.parameters[kLq])) << method;
+  }
+}

@@ -6,6 +6,7 @@ the code under test (no stored fixture to go stale).
 """
 import json
 import math
+import csv as csv_module
 import os
 import subprocess
 import tempfile
@@ -17,6 +18,7 @@ PKG = "pmsm_param_id"
 METHODS = ["fbdapso", "sapso", "pso", "ekf", "rls"]
 PORT = 21000 + os.getpid() % 5000
 DEVEL_LIB = os.path.join(os.environ["CMAKE_PREFIX_PATH"].split(":")[0], "lib", PKG)
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
 
 
 def env():
@@ -158,7 +160,8 @@ class Report(unittest.TestCase):
                 f.write("%g,1,2,3,4,5\n" % (k * 1e-4))
         self.assertEqual(tool("bag_tool", "csv2bag", csv, bag).returncode, 0)
         r = self.report(bag, os.path.join(tmp, "report"))
-        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(r.returncode, 2, r.stderr)  # what exists is drawn, but a report needs estimates
+        self.assertIn("no ParameterEstimate messages: nothing was identified", r.stderr)
         self.assertIn("no estimates", r.stderr)
         self.assertIn("no true parameters", r.stderr)
         with open(os.path.join(tmp, "report", "report.md")) as f:
@@ -207,7 +210,7 @@ class Tools(unittest.TestCase):
             f.write("t,u_d,u_q,i_d,i_q,omega_e\n" + "".join("%g,1,2,3,4,5\n" % (k * 1e-4) for k in range(10)))
         r = tool("pmsm_tool", "identify", "--csv", csv, "--method", "rls")
         self.assertEqual(r.returncode, 2)
-        self.assertIn("only 10 usable samples: fewer than the fitness horizon", r.stderr)
+        self.assertIn("only 10 usable samples: fewer than one fitness block", r.stderr)
 
 
 class BadParameters(unittest.TestCase):
@@ -227,9 +230,60 @@ class BadParameters(unittest.TestCase):
                                timeout=30, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
             self.assertEqual(r.returncode, 1, r.stdout)
             self.assertIn("parameter ~publish_period: must be > 0", r.stdout)
+            for arg, message in (("_seed:=abc", "parameter ~seed: expected an integer, got the text 'abc'"),
+                                 ("_method:=7", "parameter ~method: expected a text, got the integer 7")):
+                r = subprocess.run([os.path.join(DEVEL_LIB, "identifier"), arg], env=e, timeout=30,
+                                   stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                self.assertEqual(r.returncode, 1, r.stdout)
+                lines = [l for l in r.stdout.splitlines() if "FATAL" in l]
+                self.assertEqual(len(lines), 1, r.stdout)
+                self.assertIn(message, lines[0])
         finally:
             master.terminate()
             master.wait()
+
+
+class BenchAndIdentifyInputs(unittest.TestCase):
+    def test_an_empty_method_list_is_refused(self):
+        scenario = os.path.join(ROOT, "config", "scenarios", "wc1_drive.yaml")
+        reference = os.path.join(ROOT, "config", "reference", "paper_tables.csv")
+        r = tool("pmsm_tool", "bench", "--scenario", scenario, "--reference", reference, "--methods", ",,", "--seeds", "1")
+        self.assertEqual(r.returncode, 2, r.stdout)
+        self.assertEqual(r.stdout, "")
+        self.assertIn("--methods: no method named", r.stderr)
+
+    def test_a_log_in_rpm_and_milliamps_is_read_with_its_units(self):
+        tmp = tempfile.mkdtemp(prefix="pmsm_units_")
+        scenario = os.path.join(ROOT, "config", "scenarios", "wc1_drive.yaml")
+        csv, other = os.path.join(tmp, "si.csv"), os.path.join(tmp, "other.csv")
+        self.assertEqual(tool("pmsm_tool", "simulate", "--scenario", scenario, "--csv", csv, "--duration", "0.3").returncode, 0)
+        with open(csv) as f, open(other, "w") as g:
+            rows = list(csv_module.DictReader(f))
+            g.write("time_ms,vd,vq,id_mA,iq_mA,speed_rpm\n")
+            for x in rows:
+                g.write("%.17g,%s,%s,%.17g,%.17g,%.17g\n" % (float(x["t"]) * 1e3, x["u_d"], x["u_q"], float(x["i_d"]) * 1e3,
+                                                           float(x["i_q"]) * 1e3, float(x["omega_e"]) / 4 * 60 / (2 * math.pi)))
+        a, b = os.path.join(tmp, "a.json"), os.path.join(tmp, "b.json")
+        self.assertEqual(tool("pmsm_tool", "identify", "--csv", csv, "--method", "rls", "--json", a).returncode, 0)
+        r = tool("pmsm_tool", "identify", "--csv", other, "--method", "rls", "--json", b, "--column", "t=time_ms",
+                 "--column", "u_d=vd", "--column", "u_q=vq", "--column", "i_d=id_mA", "--column", "i_q=iq_mA",
+                 "--column", "omega_e=speed_rpm", "--time-unit", "ms", "--current-unit", "mA", "--speed-unit", "rpm",
+                 "--pole-pairs", "4")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(a) as f, open(b) as g:
+            ja, jb = json.load(f), json.load(g)
+        for p in ("R_s", "L_d", "L_q", "psi_f"):
+            self.assertAlmostEqual(ja[p] / jb[p], 1.0, places=6)
+            self.assertEqual(jb["status"][p], "identified", jb["reason"][p])
+        # Without the units the same file is a poor fit, and the tool says why.
+        r = tool("pmsm_tool", "identify", "--csv", other, "--method", "rls", "--json", b, "--column", "t=time_ms",
+                 "--column", "u_d=vd", "--column", "u_q=vq", "--column", "i_d=id_mA", "--column", "i_q=iq_mA",
+                 "--column", "omega_e=speed_rpm", "--time-unit", "ms", "--current-unit", "mA")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(b) as g:
+            jb = json.load(g)
+        self.assertFalse(any(jb["identifiable"].values()), jb["status"])
+        self.assertIn("rpm", jb["fit"]["likely_cause"])
 
 
 class CsvToBag(unittest.TestCase):

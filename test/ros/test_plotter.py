@@ -19,7 +19,8 @@ class Markers(unittest.TestCase):
             self.state.add_truth(t, truth)
             self.state.add_estimate("fbdapso", t, (2.875 * (1 + 0.1 / (1 + k)), 0.0045, 0.0135, 0.17858),
                                     (True, k > 100, True, True), 1e-2 / (1 + k))
-            self.state.add_estimate("ekf", t, (2.8, 0.0046, 0.0134, 0.18), (True, False, True, True), 0.05)
+            self.state.add_estimate("ekf", t, (2.8, 0.0046, 0.0134, 0.18), (True, False, True, True), 0.05,
+                                    ["identified", "not_excited", "identified", "identified"])
         self.arr, self.layout = plotter.build_markers(self.state)
         self.by_ns = {}
         for m in self.arr.markers:
@@ -44,11 +45,11 @@ class Markers(unittest.TestCase):
         self.assertIn("%.2f" % t0, labels)  # time axis from t1 - window ...
         self.assertIn("%.2f" % t1, labels)  # ... to the newest stamp
 
-    def test_not_identifiable_points_and_labels_are_grey(self):
+    def test_not_identified_points_and_labels_are_grey_with_their_status(self):
         strip = self.by_ns["L_d/ekf"][0]
         self.assertTrue(all(abs(c.r - plotter.GREY[0]) < 1e-6 for c in strip.colors))
         legend = [m.text for m in self.by_ns["L_d/legend"]]
-        self.assertTrue(any(l.startswith("ekf") and "not identifiable" in l for l in legend), legend)
+        self.assertTrue(any(l.startswith("ekf") and l.endswith("not_excited") for l in legend), legend)
         fb = self.by_ns["L_d/fbdapso"][0]
         self.assertAlmostEqual(fb.colors[-1].r, plotter.COLORS["fbdapso"][0])
 

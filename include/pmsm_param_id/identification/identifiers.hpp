@@ -16,7 +16,7 @@ std::shared_ptr<const AcceptancePolicy> makeAcceptancePolicy(const IdentifierCon
 class SwarmIdentifier : public OnlineIdentifier {
  public:
   explicit SwarmIdentifier(const IdentifierConfig& config);
-  std::string method() const override { return swarm_->policy().name(); }
+  std::string method() const override { return config_.method; }
   const ParticleSwarm& swarm() const { return *swarm_; }
 
  protected:
