@@ -52,6 +52,9 @@ json estimateJson(const Estimate& e) {
               {"ratio_q", numberOrNull(e.fit.fit_ratio_q)},
               {"noise_std_d", numberOrNull(e.fit.noise_std_d)},
               {"noise_std_q", numberOrNull(e.fit.noise_std_q)},
+              {"speed_scale_short", numberOrNull(e.fit.speed_scale_short)},
+              {"speed_scale_long", numberOrNull(e.fit.speed_scale_long)},
+              {"speed_unit_verified", e.fit.speed_unit_verified},
               {"likely_cause", e.fit.likely_cause.empty() ? json(nullptr) : json(e.fit.likely_cause)}};
   j["sample_period"] = numberOrNull(e.sample_period);
   j["fitness"] = numberOrNull(e.fitness);

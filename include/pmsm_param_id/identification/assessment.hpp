@@ -7,6 +7,7 @@
 // physically plausible. doc/algorithm.md section 4 gives the equations and the measured thresholds.
 #pragma once
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <string>
 
@@ -44,6 +45,9 @@ struct FitCheck {
   double fit_ratio_q = 0.0;        ///< [-]
   double optimum_fitness = 0.0;    ///< [A^2]
   bool consistent = false;         ///< the model fits at the noise level
+  bool speed_unit_verified = false; ///< q-axis current steps tie the speed terms to the Di terms (3 %)
+  double speed_scale_short = NAN;  ///< speed-term / current-step-term inductance ratio, fitness window [-]
+  double speed_scale_long = NAN;   ///< the same over the long check window [-] (1 when the units are right)
   std::string likely_cause;        ///< one line when the fit is poor and a cause fits the data
 };
 

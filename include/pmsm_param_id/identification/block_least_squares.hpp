@@ -54,10 +54,14 @@ class BlockLeastSquares {
   /// Minimises sum of (r_d^2 + r_q^2) over the window for `model`. `start` must have positive
   /// inductances; entries with fixed[j] = true are kept. variance_inflation multiplies the
   /// information-based variances (doc/algorithm.md section 4).
-  static BlockFit fit(const BlockStatistics& stats, const LinearBlockModel& model, const Eigen::VectorXd& start,
+  static BlockFit fit(const WindowSums& window, const LinearBlockModel& model, const Eigen::VectorXd& start,
                       const std::vector<bool>& fixed = {}, double variance_inflation = 1.0);
+  static BlockFit fit(const BlockStatistics& stats, const LinearBlockModel& model, const Eigen::VectorXd& start,
+                      const std::vector<bool>& fixed = {}, double variance_inflation = 1.0) {
+    return fit(stats.window(), model, start, fixed, variance_inflation);
+  }
   /// Mean squares of r_d, r_q and of their block-to-block differences at beta.
-  static void residuals(const BlockStatistics& stats, const LinearBlockModel& model, const Eigen::VectorXd& beta,
+  static void residuals(const WindowSums& window, const LinearBlockModel& model, const Eigen::VectorXd& beta,
                         double& ms_d, double& ms_q, double& diff_ms_d, double& diff_ms_q);
 };
 

@@ -33,6 +33,7 @@ namespace pmsm_param_id {
 struct WindowSettings {
   double block_length = 0.005;             ///< length of one fitness block [s] (whole sampling periods)
   double forgetting_time_constant = 0.05;  ///< exponential forgetting of the fitness window [s]
+  double long_time_constant = 10.0;        ///< forgetting of the long check window [s] (unit checks)
   int voltage_delay_samples = 0;           ///< 0: u(t_k) acts on [t_k, t_k+1); 1: on [t_k+1, t_k+2)
 };
 
@@ -61,6 +62,20 @@ using BlockD = Eigen::Matrix<double, kBlockSizeD, 1>;
 using BlockQ = Eigen::Matrix<double, kBlockSizeQ, 1>;
 using ProductD = Eigen::Matrix<double, kBlockSizeD, kBlockSizeD>;
 using ProductQ = Eigen::Matrix<double, kBlockSizeQ, kBlockSizeQ>;
+
+/// The sums of one window as the solvers need them (means of z z^T, the effective block count).
+struct WindowSums {
+  ProductD mean_d = ProductD::Zero();
+  ProductQ mean_q = ProductQ::Zero();
+  ProductD mean_difference_d = ProductD::Zero();  ///< of consecutive block differences (short window)
+  ProductQ mean_difference_q = ProductQ::Zero();
+  double weight = 0.0;               ///< effective number of blocks [-]
+  bool has_differences = false;
+  double block_duration = 0.0;       ///< [s]
+  double noise_variance_d = -1.0;    ///< known block-residual noise variance [A^2]; < 0: from the differences
+  double noise_variance_q = -1.0;
+  bool hasBlocks() const { return weight > 0; }
+};
 
 class BlockStatistics {
  public:
@@ -115,6 +130,10 @@ class BlockStatistics {
   ProductD meanDifferenceProductD() const;
   ProductQ meanDifferenceProductQ() const;
   bool hasDifferences() const { return difference_weight_ > 0; }
+  /// The fitness window (overlapping blocks, forgetting_time_constant).
+  WindowSums window() const;
+  /// The long check window: non-overlapping blocks, long_time_constant; no differences.
+  WindowSums longWindow() const;
   const BlockD& lastBlockD() const { return last_d_; }
   const BlockQ& lastBlockQ() const { return last_q_; }
   const WindowSettings& settings() const { return settings_; }
@@ -145,6 +164,9 @@ class BlockStatistics {
   double weight_ = 0.0, difference_weight_ = 0.0;
   std::uint64_t blocks_ = 0;
   bool have_previous_block_ = false;
+  ProductD long_d_ = ProductD::Zero();
+  ProductQ long_q_ = ProductQ::Zero();
+  double long_weight_ = 0.0, long_lambda_ = 1.0;
   BlockD last_d_ = BlockD::Zero();
   BlockQ last_q_ = BlockQ::Zero();
 };

@@ -37,6 +37,46 @@ bool fitsAtNoise(double ms, double noise, double floor2, double max_ratio) { ret
 // when no alternative is significant.
 constexpr double kSignificance = 5.0;
 
+struct SpeedScaleTest {
+  BlockFit fit;
+  double scale = std::numeric_limits<double>::quiet_NaN();  // c, NaN when undetermined
+  bool significant = false;
+  bool verified = false;  // the data determine the scale to 3 % (q-axis current steps seen)
+  std::string text;
+};
+
+// Speed or time unit: the inductances in the speed terms free against those in the Di terms.
+SpeedScaleTest speedScaleTest(const WindowSums& window, const AssessmentSettings& a, const FitCheck& fit) {
+  SpeedScaleTest out;
+  Eigen::VectorXd s(6);
+  s << fit.optimum[kRs], fit.optimum[kLd], fit.optimum[kLq], fit.optimum[kPsiF], fit.optimum[kLq], fit.optimum[kLd];
+  const BlockFit f = BlockLeastSquares::fit(window, LinearBlockModel::speedScale(), s, {}, a.variance_inflation);
+  out.fit = f;
+  const double c = f.beta(4) / f.beta(kLq);  // speed-term L_q / Di-term L_q
+  const double c_std = c * std::hypot(f.standard_deviation(4) / f.beta(4), f.standard_deviation(kLq) / f.beta(kLq));
+  out.verified = std::isfinite(c_std) && c_std < 0.03 * c;
+  if (std::isfinite(c_std)) out.scale = c;
+  // Relevance: 6 %, above the 3.3 % spread of the long-window ratio measured on correct data (30 seeds
+  // of each shipped motor); a unit error is a factor of 2 or more (rpm with 9-11 pole pairs aside).
+  out.significant = f.ok && std::isfinite(c) && c > 0 && std::abs(c - 1.0) > 0.06 && std::abs(c - 1.0) > kSignificance * c_std;
+  if (!out.significant) return out;
+  const double rpm_pole_pairs = c / (2.0 * M_PI / 60.0);
+  if (c > 1.5 && std::abs(c - std::round(c)) < 0.1 * c)
+    out.text = format("omega_e looks like mechanical speed: the speed terms fit %.3g times the current-step terms "
+                      "(pole pairs about %.0f?); log omega_e = pole pairs x mechanical speed [rad/s]", c, std::round(c));
+  else if (rpm_pole_pairs >= 0.9 && std::abs(rpm_pole_pairs - std::round(rpm_pole_pairs)) < 0.05 * rpm_pole_pairs)
+    out.text = format("omega_e looks like rpm: the speed terms fit %.3g times the current-step terms (= 2 pi / 60 x "
+                      "%.0f pole pairs); log the electrical speed in rad/s", c, std::round(rpm_pole_pairs));
+  else if (c > 1.0 / 3000 && c < 1.0 / 300)
+    out.text = format("time looks like ms, not s: the speed terms fit %.3g times the current-step terms", c);
+  else if (c > 1.0 / 3e6 && c < 1.0 / 3e5)
+    out.text = format("time looks like us, not s: the speed terms fit %.3g times the current-step terms", c);
+  else
+    out.text = format("the speed terms fit %.3g times the current-step terms: check the unit of omega_e "
+                      "(electrical rad/s) and of time (s)", c);
+  return out;
+}
+
 std::string misspecification(const BlockStatistics& stats, const AssessmentSettings& a, const FitCheck& fit) {
   Eigen::VectorXd start4(4);
   for (int p = 0; p < kParameterCount; ++p) start4(p) = fit.optimum[p];
@@ -49,32 +89,12 @@ std::string misspecification(const BlockStatistics& stats, const AssessmentSetti
       best = text;
     }
   };
-  // Speed or time unit: the inductances in the speed terms free against those in the Di terms.
-  {
-    Eigen::VectorXd s(6);
-    s << start4, fit.optimum[kLq], fit.optimum[kLd];
-    const BlockFit f = BlockLeastSquares::fit(stats, LinearBlockModel::speedScale(), s, {}, a.variance_inflation);
-    const double c = f.beta(4) / f.beta(kLq);  // speed-term L_q / Di-term L_q
-    const double c_std = c * std::hypot(f.standard_deviation(4) / f.beta(4), f.standard_deviation(kLq) / f.beta(kLq));
-    const bool significant = std::isfinite(c) && c > 0 && std::abs(c - 1.0) > 0.03 && std::abs(c - 1.0) > kSignificance * c_std;
-    std::string text;
-    if (significant) {
-      const double rpm_pole_pairs = c / (2.0 * M_PI / 60.0);
-      if (c > 1.5 && std::abs(c - std::round(c)) < 0.05 * c)
-        text = format("omega_e looks like mechanical speed: the speed terms fit %.3g times the current-step terms "
-                      "(pole pairs %.0f?); log omega_e = pole pairs x mechanical speed [rad/s]", c, std::round(c));
-      else if (rpm_pole_pairs >= 0.9 && std::abs(rpm_pole_pairs - std::round(rpm_pole_pairs)) < 0.05 * rpm_pole_pairs)
-        text = format("omega_e looks like rpm: the speed terms fit %.3g times the current-step terms (= 2 pi / 60 x "
-                      "%.0f pole pairs); log the electrical speed in rad/s", c, std::round(rpm_pole_pairs));
-      else if (c > 1.0 / 3000 && c < 1.0 / 300)
-        text = format("time looks like ms, not s: the speed terms fit %.3g times the current-step terms", c);
-      else if (c > 1.0 / 3e6 && c < 1.0 / 3e5)
-        text = format("time looks like us, not s: the speed terms fit %.3g times the current-step terms", c);
-      else
-        text = format("the speed terms fit %.3g times the current-step terms: check the unit of omega_e "
-                      "(electrical rad/s) and of time (s)", c);
-    }
-    consider(f, significant, text);
+  // In the fitness window the current-step terms of a steady state are weak and biased by the
+  // controller's reaction to noise (the ratio came out 0.5-0.73 on correct robot-joint data), so the
+  // speed scale only names the cause of a fit that already failed; the long window tests it.
+  if (!fit.consistent) {
+    const SpeedScaleTest t = speedScaleTest(stats.window(), a, fit);
+    consider(t.fit, t.significant, t.text);
   }
   // A voltage that acts a sample later or earlier than declared.
   {
@@ -140,7 +160,21 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   out.consistent = fitsAtNoise(f.mean_square_d, f.noise_variance_d, floor2, a.max_fit_ratio) &&
                    fitsAtNoise(f.mean_square_q, f.noise_variance_q, floor2, a.max_fit_ratio);
   if (diagnose_misfit) {
-    const std::string cause = misspecification(stats, a, out);
+    std::string cause = misspecification(stats, a, out);
+    // The unit of the speed shows only where the window holds q-axis current steps; the fitness
+    // window may have forgotten them (a start-up, a load step), the long window has not.
+    WindowSums long_window = stats.longWindow();
+    const SpeedScaleTest short_test = speedScaleTest(stats.window(), a, out);
+    out.speed_unit_verified = short_test.verified;
+    out.speed_scale_short = short_test.scale;
+    if (long_window.hasBlocks()) {
+      long_window.noise_variance_d = f.noise_variance_d;
+      long_window.noise_variance_q = f.noise_variance_q;
+      const SpeedScaleTest t = speedScaleTest(long_window, a, out);
+      out.speed_unit_verified = out.speed_unit_verified || t.verified;
+      out.speed_scale_long = t.scale;
+      if (cause.empty() && t.significant) cause = t.text + " (over the long check window)";
+    }
     if (!cause.empty()) {
       out.consistent = false;
       out.likely_cause = cause;
@@ -202,6 +236,8 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
     }
     st = ParameterStatus::Identified;
     why = format("+-%.3g %%", 100 * out.relative_uncertainty[p]);
+    if ((p == kLq || p == kPsiF) && !fit.speed_unit_verified)
+      why += " (through the speed terms only: no q-axis current steps seen yet, so a wrong speed unit could not show)";
   }
   return out;
 }

@@ -73,7 +73,7 @@ LinearBlockModel LinearBlockModel::inverter() {
   return m;
 }
 
-void BlockLeastSquares::residuals(const BlockStatistics& stats, const LinearBlockModel& model,
+void BlockLeastSquares::residuals(const WindowSums& stats, const LinearBlockModel& model,
                                   const Eigen::VectorXd& beta, double& ms_d, double& ms_q, double& diff_ms_d,
                                   double& diff_ms_q) {
   Eigen::Matrix<double, kBlockSizeD, 1> vd;
@@ -82,13 +82,13 @@ void BlockLeastSquares::residuals(const BlockStatistics& stats, const LinearBloc
   Eigen::Matrix<double, kBlockSizeQ, Eigen::Dynamic> Jq;
   weights<kBlockSizeD>(model.G_d, kIntegralUd, beta, model.d_inductance, vd, Jd);
   weights<kBlockSizeQ>(model.G_q, kIntegralUq, beta, model.q_inductance, vq, Jq);
-  ms_d = std::max(0.0, vd.dot(stats.meanProductD() * vd));
-  ms_q = std::max(0.0, vq.dot(stats.meanProductQ() * vq));
-  diff_ms_d = std::max(0.0, vd.dot(stats.meanDifferenceProductD() * vd));
-  diff_ms_q = std::max(0.0, vq.dot(stats.meanDifferenceProductQ() * vq));
+  ms_d = std::max(0.0, vd.dot(stats.mean_d * vd));
+  ms_q = std::max(0.0, vq.dot(stats.mean_q * vq));
+  diff_ms_d = std::max(0.0, vd.dot(stats.mean_difference_d * vd));
+  diff_ms_q = std::max(0.0, vq.dot(stats.mean_difference_q * vq));
 }
 
-BlockFit BlockLeastSquares::fit(const BlockStatistics& stats, const LinearBlockModel& model,
+BlockFit BlockLeastSquares::fit(const WindowSums& stats, const LinearBlockModel& model,
                                 const Eigen::VectorXd& start, const std::vector<bool>& fixed_in,
                                 double variance_inflation) {
   const int n = model.size();
@@ -100,8 +100,8 @@ BlockFit BlockLeastSquares::fit(const BlockStatistics& stats, const LinearBlockM
     return out;
   std::vector<bool> fixed = fixed_in;
   fixed.resize(static_cast<std::size_t>(n), false);
-  const ProductD Sd = stats.meanProductD();
-  const ProductQ Sq = stats.meanProductQ();
+  const ProductD& Sd = stats.mean_d;
+  const ProductQ& Sq = stats.mean_q;
 
   Eigen::VectorXd beta = start;
   Eigen::Matrix<double, kBlockSizeD, 1> vd;
@@ -161,12 +161,14 @@ BlockFit BlockLeastSquares::fit(const BlockStatistics& stats, const LinearBlockM
   // noise terms, so the residual variance that noise explains is half the difference variance.
   out.noise_variance_d *= 0.5;
   out.noise_variance_q *= 0.5;
-  if (!stats.hasDifferences()) out.noise_variance_d = out.noise_variance_q = 0.0;
+  if (!stats.has_differences) out.noise_variance_d = out.noise_variance_q = 0.0;
+  if (stats.noise_variance_d >= 0) out.noise_variance_d = stats.noise_variance_d;
+  if (stats.noise_variance_q >= 0) out.noise_variance_q = stats.noise_variance_q;
 
   // Information of the window: effective block count x J^T S J / sigma^2 per axis.
   const double floor_d = std::max(out.noise_variance_d, 1e-30);
   const double floor_q = std::max(out.noise_variance_q, 1e-30);
-  A = stats.weight() * (Jd.transpose() * Sd * Jd / floor_d + Jq.transpose() * Sq * Jq / floor_q);
+  A = stats.weight * (Jd.transpose() * Sd * Jd / floor_d + Jq.transpose() * Sq * Jq / floor_q);
   // Covariance over the free entries. A direction with (almost) no information makes the entry
   // that dominates it undetermined; that entry is set aside and the rest are evaluated without it
   // (e.g. L_d without d-axis excitation leaves R_s, L_q, psi_f determined by the q axis).

@@ -21,6 +21,9 @@ void BlockStatistics::reset() {
   scale_ = 1.0;
   blocks_ = 0;
   have_previous_block_ = false;
+  long_d_.setZero();
+  long_q_.setZero();
+  long_weight_ = 0.0;
 }
 
 void BlockStatistics::configure(double nominal_period) {
@@ -30,6 +33,7 @@ void BlockStatistics::configure(double nominal_period) {
   nominal_period_ = nominal_period;
   block_samples_ = std::max(1, static_cast<int>(std::lround(settings_.block_length / nominal_period)));
   lambda_ = std::exp(-nominal_period / settings_.forgetting_time_constant);
+  long_lambda_ = std::exp(-block_samples_ * nominal_period / settings_.long_time_constant);
   ring_.resize(static_cast<std::size_t>(block_samples_) + 1);
 }
 
@@ -116,6 +120,11 @@ bool BlockStatistics::add(const Sample& s) {
   have_previous_block_ = true;
   ++blocks_;
   if (scale_ > 1e150) rescale();
+  if (blocks_ % static_cast<std::uint64_t>(block_samples_) == 0) {  // every M-th block: non-overlapping
+    long_d_ = long_lambda_ * long_d_ + zd * zd.transpose();
+    long_q_ = long_lambda_ * long_q_ + zq * zq.transpose();
+    long_weight_ = long_lambda_ * long_weight_ + 1.0;
+  }
   // Keep the running integrals small: rebase on the oldest entry once per block length (exact).
   if (blocks_ % static_cast<std::uint64_t>(cap) == 0) {
     const Cumulative base = ring_[head_];
@@ -137,6 +146,28 @@ void BlockStatistics::rescale() {
   stored_weight_ *= k;
   stored_difference_weight_ *= k;
   scale_ = 1.0;
+}
+
+WindowSums BlockStatistics::window() const {
+  WindowSums w;
+  w.mean_d = meanProductD();
+  w.mean_q = meanProductQ();
+  w.mean_difference_d = meanDifferenceProductD();
+  w.mean_difference_q = meanDifferenceProductQ();
+  w.weight = weight_;
+  w.has_differences = difference_weight_ > 0;
+  w.block_duration = blockDuration();
+  return w;
+}
+
+WindowSums BlockStatistics::longWindow() const {
+  WindowSums w;
+  if (long_weight_ <= 0) return w;
+  w.mean_d = long_d_ / long_weight_;
+  w.mean_q = long_q_ / long_weight_;
+  w.weight = long_weight_;
+  w.block_duration = blockDuration();
+  return w;
 }
 
 ProductD BlockStatistics::meanProductD() const {

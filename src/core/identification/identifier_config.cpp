@@ -44,6 +44,8 @@ void validate(const IdentifierConfig& c, const std::string& source) {
   if (!(c.window.block_length > 0)) fail("window.block_length", "must be > 0");
   if (!(c.window.forgetting_time_constant > c.window.block_length))
     fail("window.forgetting_time_constant", "must be longer than window.block_length");
+  if (!(c.window.long_time_constant >= c.window.forgetting_time_constant))
+    fail("window.long_time_constant", "must be at least window.forgetting_time_constant");
   if (c.window.voltage_delay_samples < 0 || c.window.voltage_delay_samples > 1)
     fail("time.voltage_delay_samples", "must be 0 or 1");
   if (!(c.time.max_gap_periods > 1)) fail("time.max_gap_periods", "must be > 1");
@@ -81,6 +83,7 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   c.search.span_factor = y.number("search.span_factor", c.search.span_factor);
   c.window.block_length = y.positive("window.block_length", c.window.block_length);
   c.window.forgetting_time_constant = y.positive("window.forgetting_time_constant", c.window.forgetting_time_constant);
+  c.window.long_time_constant = y.positive("window.long_time_constant", c.window.long_time_constant);
   c.swarm.particles = static_cast<int>(y.integer("swarm.particles", c.swarm.particles, 2, 100000));
   c.swarm.c1 = y.number("swarm.c1", c.swarm.c1);
   c.swarm.c2 = y.number("swarm.c2", c.swarm.c2);
