@@ -132,7 +132,7 @@ class BlockStatistics {
   bool hasDifferences() const { return difference_weight_ > 0; }
   /// The fitness window (overlapping blocks, forgetting_time_constant).
   WindowSums window() const;
-  /// The long check window: non-overlapping blocks, long_time_constant; no differences.
+  /// The long check window: differences of consecutive non-overlapping blocks, long_time_constant.
   WindowSums longWindow() const;
   const BlockD& lastBlockD() const { return last_d_; }
   const BlockQ& lastBlockQ() const { return last_q_; }
@@ -167,6 +167,10 @@ class BlockStatistics {
   ProductD long_d_ = ProductD::Zero();
   ProductQ long_q_ = ProductQ::Zero();
   double long_weight_ = 0.0, long_lambda_ = 1.0;
+  BlockD long_last_d_ = BlockD::Zero();
+  BlockQ long_last_q_ = BlockQ::Zero();
+  bool have_long_block_ = false;
+  std::uint64_t blocks_in_stretch_ = 0;
   BlockD last_d_ = BlockD::Zero();
   BlockQ last_q_ = BlockQ::Zero();
 };

@@ -168,8 +168,8 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     out.speed_unit_verified = short_test.verified;
     out.speed_scale_short = short_test.scale;
     if (long_window.hasBlocks()) {
-      long_window.noise_variance_d = f.noise_variance_d;
-      long_window.noise_variance_q = f.noise_variance_q;
+      long_window.noise_variance_d = 2.0 * f.noise_variance_d;  // a difference of two independent blocks
+      long_window.noise_variance_q = 2.0 * f.noise_variance_q;
       const SpeedScaleTest t = speedScaleTest(long_window, a, out);
       out.speed_unit_verified = out.speed_unit_verified || t.verified;
       out.speed_scale_long = t.scale;

@@ -24,6 +24,8 @@ void BlockStatistics::reset() {
   long_d_.setZero();
   long_q_.setZero();
   long_weight_ = 0.0;
+  have_long_block_ = false;
+  blocks_in_stretch_ = 0;
 }
 
 void BlockStatistics::configure(double nominal_period) {
@@ -40,6 +42,8 @@ void BlockStatistics::configure(double nominal_period) {
 void BlockStatistics::breakContinuity() {
   count_ = 0;
   have_previous_block_ = false;
+  have_long_block_ = false;
+  blocks_in_stretch_ = 0;
 }
 
 namespace {
@@ -120,10 +124,20 @@ bool BlockStatistics::add(const Sample& s) {
   have_previous_block_ = true;
   ++blocks_;
   if (scale_ > 1e150) rescale();
-  if (blocks_ % static_cast<std::uint64_t>(block_samples_) == 0) {  // every M-th block: non-overlapping
-    long_d_ = long_lambda_ * long_d_ + zd * zd.transpose();
-    long_q_ = long_lambda_ * long_q_ + zq * zq.transpose();
-    long_weight_ = long_lambda_ * long_weight_ + 1.0;
+  // Every M-th block of a stretch: consecutive non-overlapping blocks, and the long window keeps
+  // their differences. Differencing removes what varies slowly (a drifting R_s or psi_f would
+  // otherwise bias a constant-parameter fit over seconds) and keeps the steps.
+  if (++blocks_in_stretch_ % static_cast<std::uint64_t>(block_samples_) == 0) {
+    if (have_long_block_) {
+      const BlockD dd = zd - long_last_d_;
+      const BlockQ dq = zq - long_last_q_;
+      long_d_ = long_lambda_ * long_d_ + dd * dd.transpose();
+      long_q_ = long_lambda_ * long_q_ + dq * dq.transpose();
+      long_weight_ = long_lambda_ * long_weight_ + 1.0;
+    }
+    long_last_d_ = zd;
+    long_last_q_ = zq;
+    have_long_block_ = true;
   }
   // Keep the running integrals small: rebase on the oldest entry once per block length (exact).
   if (blocks_ % static_cast<std::uint64_t>(cap) == 0) {
