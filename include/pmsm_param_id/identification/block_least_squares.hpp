@@ -31,10 +31,10 @@ struct LinearBlockModel {
   int q_inductance = kLq;  ///< ... Di_q (divides r_q)
   int size() const { return static_cast<int>(parameter_names.size()); }
 
-  static LinearBlockModel paper();        ///< {R_s, L_d, L_q, psi_f}: the fitness the swarm minimises
-  static LinearBlockModel speedScale();   ///< + {L_q in speed terms, L_d in speed terms}; psi_f in speed terms
-  static LinearBlockModel delay();        ///< + {a}: voltage delay [samples]
-  static LinearBlockModel inverter();     ///< + {V}: inverter voltage along the current [V]
+  static const LinearBlockModel& paper();        ///< {R_s, L_d, L_q, psi_f}: the fitness the swarm minimises
+  static const LinearBlockModel& speedScale();   ///< + {L_q in speed terms, L_d in speed terms}; psi_f in speed terms
+  static const LinearBlockModel& delay();        ///< + {a}: voltage delay [samples]
+  static const LinearBlockModel& inverter();     ///< + {V}: inverter voltage along the current [V]
 };
 
 struct BlockFit {

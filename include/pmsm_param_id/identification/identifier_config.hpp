@@ -36,7 +36,7 @@ struct SearchSettings {
 struct AssessmentSettings {
   double max_relative_uncertainty = 0.01;  ///< identified when the stated uncertainty is within this [-]
   double confidence_sigmas = 3.0;          ///< the stated uncertainty is this many standard deviations [-]
-  double variance_inflation = 4.0;         ///< information-based variance x this (measured calibration) [-]
+  double variance_inflation = 9.0;         ///< information-based variance x this (measured calibration) [-]
   double max_fit_ratio = 4.0;              ///< poor fit: mean square residual > this x what noise explains [-]
   double fit_floor_relative = 1e-4;        ///< residual RMS below this x RMS current is always a fit [-]
   double min_relative_uncertainty = 0.002; ///< the stated uncertainty is never below this (sampling effects) [-]

@@ -30,6 +30,7 @@ class SwarmIdentifier : public OnlineIdentifier {
 
  private:
   std::unique_ptr<ParticleSwarm> swarm_;
+  std::uint64_t cycles_ = 0;
 };
 
 using EkfState = Eigen::Matrix<double, 6, 1>;     ///< {i_d, i_q, R_s, L_d, L_q, psi_f}

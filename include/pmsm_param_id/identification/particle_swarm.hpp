@@ -192,10 +192,9 @@ void ParticleSwarm::iterate(const F& f) {
     const double delta = (m.f - p.f) / scale;
     const double r = thermal && delta >= 0 ? rng_.uniform() : 0.0;
     const bool accepted = policy_->accept(delta, r, p.th);
-    if (delta > 0) {
-      ++worse_proposed_;
-      worse_accepted_ += accepted;
-    }
+    const bool worse = delta > 0;  // counted without a branch: the outcome is random
+    worse_proposed_ += worse;
+    worse_accepted_ += worse & accepted;
     if (accepted) {
       p.x = m.x;
       p.v = m.v;

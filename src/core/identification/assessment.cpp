@@ -58,7 +58,9 @@ SpeedScaleTest speedScaleTest(const WindowSums& window, const AssessmentSettings
   if (std::isfinite(c_std)) out.scale = c;
   // Relevance: 6 %, above the 3.3 % spread of the long-window ratio measured on correct data (30 seeds
   // of each shipped motor); a unit error is a factor of 2 or more (rpm with 9-11 pole pairs aside).
-  out.significant = f.ok && std::isfinite(c) && c > 0 && std::abs(c - 1.0) > 0.06 && std::abs(c - 1.0) > kSignificance * c_std;
+  // c is a scale factor: tested in log space, |ln c| against the relative std of c.
+  out.significant = f.ok && std::isfinite(c) && c > 0 && std::abs(std::log(c)) > 0.06 &&
+                    std::abs(std::log(c)) > kSignificance * c_std / c;
   if (!out.significant) return out;
   const double rpm_pole_pairs = c / (2.0 * M_PI / 60.0);
   if (c > 1.5 && std::abs(c - std::round(c)) < 0.1 * c)

@@ -7,6 +7,12 @@
 namespace pmsm_param_id {
 
 namespace {
+// At most 6 parameters: fixed-capacity matrices keep the solver off the heap.
+using MatN = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
+using VecN = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>;
+template <int N>
+using JacobianN = Eigen::Matrix<double, N, Eigen::Dynamic, 0, N, 6>;
+
 LinearBlockModel base(int extra) {
   LinearBlockModel m;
   m.parameter_names = {"R_s", "L_d", "L_q", "psi_f"};
@@ -25,8 +31,8 @@ LinearBlockModel base(int extra) {
 
 // Residual weight vectors v = (G beta - e_U) / L per axis (r = v . z) and their Jacobians.
 template <int N>
-void weights(const Eigen::MatrixXd& G, int voltage_row, const Eigen::VectorXd& beta, int inductance,
-             Eigen::Matrix<double, N, 1>& v, Eigen::Matrix<double, N, Eigen::Dynamic>& J) {
+void weights(const Eigen::MatrixXd& G, int voltage_row, const VecN& beta, int inductance,
+             Eigen::Matrix<double, N, 1>& v, JacobianN<N>& J) {
   const double L = beta(inductance);
   Eigen::Matrix<double, N, 1> e = G * beta;
   e(voltage_row) -= 1.0;
@@ -36,41 +42,53 @@ void weights(const Eigen::MatrixXd& G, int voltage_row, const Eigen::VectorXd& b
 }
 }  // namespace
 
-LinearBlockModel LinearBlockModel::paper() {
-  LinearBlockModel m = base(0);
-  m.name = "paper";
-  return m;
+const LinearBlockModel& LinearBlockModel::paper() {
+  static const LinearBlockModel model = [] {
+    LinearBlockModel m = base(0);
+    m.name = "paper";
+    return m;
+  }();
+  return model;
 }
 
-LinearBlockModel LinearBlockModel::speedScale() {
-  // beta = {R_s, L_d (Di_d), L_q (Di_q), psi_f (speed term), L_q (speed term), L_d (speed term)}
-  LinearBlockModel m = base(2);
-  m.name = "speed_scale";
-  m.parameter_names.push_back("L_q_speed_term");
-  m.parameter_names.push_back("L_d_speed_term");
-  m.G_d(kIntegralOmegaIq, kLq) = 0.0;
-  m.G_d(kIntegralOmegaIq, 4) = -1.0;
-  m.G_q(kIntegralOmegaId, kLd) = 0.0;
-  m.G_q(kIntegralOmegaId, 5) = 1.0;
-  return m;
+const LinearBlockModel& LinearBlockModel::speedScale() {
+  static const LinearBlockModel model = [] {
+    // beta = {R_s, L_d (Di_d), L_q (Di_q), psi_f (speed term), L_q (speed term), L_d (speed term)}
+    LinearBlockModel m = base(2);
+    m.name = "speed_scale";
+    m.parameter_names.push_back("L_q_speed_term");
+    m.parameter_names.push_back("L_d_speed_term");
+    m.G_d(kIntegralOmegaIq, kLq) = 0.0;
+    m.G_d(kIntegralOmegaIq, 4) = -1.0;
+    m.G_q(kIntegralOmegaId, kLd) = 0.0;
+    m.G_q(kIntegralOmegaId, 5) = 1.0;
+    return m;
+  }();
+  return model;
 }
 
-LinearBlockModel LinearBlockModel::delay() {
-  LinearBlockModel m = base(1);
-  m.name = "delay";
-  m.parameter_names.push_back("voltage_delay");
-  m.G_d(kIntegralUdStep, 4) = 1.0;
-  m.G_q(kIntegralUqStep, 4) = 1.0;
-  return m;
+const LinearBlockModel& LinearBlockModel::delay() {
+  static const LinearBlockModel model = [] {
+    LinearBlockModel m = base(1);
+    m.name = "delay";
+    m.parameter_names.push_back("voltage_delay");
+    m.G_d(kIntegralUdStep, 4) = 1.0;
+    m.G_q(kIntegralUqStep, 4) = 1.0;
+    return m;
+  }();
+  return model;
 }
 
-LinearBlockModel LinearBlockModel::inverter() {
-  LinearBlockModel m = base(1);
-  m.name = "inverter";
-  m.parameter_names.push_back("inverter_voltage");
-  m.G_d(kIntegralIdDirection, 4) = 1.0;
-  m.G_q(kIntegralIqDirection, 4) = 1.0;
-  return m;
+const LinearBlockModel& LinearBlockModel::inverter() {
+  static const LinearBlockModel model = [] {
+    LinearBlockModel m = base(1);
+    m.name = "inverter";
+    m.parameter_names.push_back("inverter_voltage");
+    m.G_d(kIntegralIdDirection, 4) = 1.0;
+    m.G_q(kIntegralIqDirection, 4) = 1.0;
+    return m;
+  }();
+  return model;
 }
 
 void BlockLeastSquares::residuals(const WindowSums& stats, const LinearBlockModel& model,
@@ -78,10 +96,11 @@ void BlockLeastSquares::residuals(const WindowSums& stats, const LinearBlockMode
                                   double& diff_ms_q) {
   Eigen::Matrix<double, kBlockSizeD, 1> vd;
   Eigen::Matrix<double, kBlockSizeQ, 1> vq;
-  Eigen::Matrix<double, kBlockSizeD, Eigen::Dynamic> Jd;
-  Eigen::Matrix<double, kBlockSizeQ, Eigen::Dynamic> Jq;
-  weights<kBlockSizeD>(model.G_d, kIntegralUd, beta, model.d_inductance, vd, Jd);
-  weights<kBlockSizeQ>(model.G_q, kIntegralUq, beta, model.q_inductance, vq, Jq);
+  JacobianN<kBlockSizeD> Jd;
+  JacobianN<kBlockSizeQ> Jq;
+  const VecN b = beta;
+  weights<kBlockSizeD>(model.G_d, kIntegralUd, b, model.d_inductance, vd, Jd);
+  weights<kBlockSizeQ>(model.G_q, kIntegralUq, b, model.q_inductance, vq, Jq);
   ms_d = std::max(0.0, vd.dot(stats.mean_d * vd));
   ms_q = std::max(0.0, vq.dot(stats.mean_q * vq));
   diff_ms_d = std::max(0.0, vd.dot(stats.mean_difference_d * vd));
@@ -103,12 +122,12 @@ BlockFit BlockLeastSquares::fit(const WindowSums& stats, const LinearBlockModel&
   const ProductD& Sd = stats.mean_d;
   const ProductQ& Sq = stats.mean_q;
 
-  Eigen::VectorXd beta = start;
+  VecN beta = start;
   Eigen::Matrix<double, kBlockSizeD, 1> vd;
   Eigen::Matrix<double, kBlockSizeQ, 1> vq;
-  Eigen::Matrix<double, kBlockSizeD, Eigen::Dynamic> Jd;
-  Eigen::Matrix<double, kBlockSizeQ, Eigen::Dynamic> Jq;
-  const auto objective = [&](const Eigen::VectorXd& b) {
+  JacobianN<kBlockSizeD> Jd;
+  JacobianN<kBlockSizeQ> Jq;
+  const auto objective = [&](const VecN& b) {
     if (!(b(model.d_inductance) > 0) || !(b(model.q_inductance) > 0)) return std::numeric_limits<double>::infinity();
     weights<kBlockSizeD>(model.G_d, kIntegralUd, b, model.d_inductance, vd, Jd);
     weights<kBlockSizeQ>(model.G_q, kIntegralUq, b, model.q_inductance, vq, Jq);
@@ -116,9 +135,9 @@ BlockFit BlockLeastSquares::fit(const WindowSums& stats, const LinearBlockModel&
   };
   // Gauss-Newton on the exact residuals r = v(beta) . z, with the normal matrix equilibrated and
   // pseudo-inverted: eigen-directions the data do not determine get no update.
-  Eigen::MatrixXd A(n, n);
-  Eigen::VectorXd g(n);
-  Eigen::VectorXd scale(n);
+  MatN A(n, n);
+  VecN g(n);
+  VecN scale(n);
   double f = objective(beta);
   for (int iteration = 0; iteration < 30; ++iteration) {
     A = Jd.transpose() * Sd * Jd + Jq.transpose() * Sq * Jq;
@@ -127,17 +146,17 @@ BlockFit BlockLeastSquares::fit(const WindowSums& stats, const LinearBlockModel&
     for (int j = 0; j < n; ++j) amax = std::max(amax, fixed[j] ? 0.0 : A(j, j));
     if (!(amax > 0) || !std::isfinite(amax)) break;
     for (int j = 0; j < n; ++j) scale(j) = fixed[j] || !(A(j, j) > 1e-30 * amax) ? 0.0 : 1.0 / std::sqrt(A(j, j));
-    const Eigen::MatrixXd As = scale.asDiagonal() * A * scale.asDiagonal();
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(As);
-    const Eigen::VectorXd ev = eig.eigenvalues();
+    const MatN As = scale.asDiagonal() * A * scale.asDiagonal();
+    Eigen::SelfAdjointEigenSolver<MatN> eig(As);
+    const VecN ev = eig.eigenvalues();
     const double evmax = ev.maxCoeff();
-    Eigen::VectorXd gs = scale.asDiagonal() * g;
-    Eigen::VectorXd coeffs = eig.eigenvectors().transpose() * gs;
+    const VecN gs = scale.asDiagonal() * g;
+    VecN coeffs = eig.eigenvectors().transpose() * gs;
     for (int j = 0; j < n; ++j) coeffs(j) = ev(j) > 1e-10 * evmax ? coeffs(j) / ev(j) : 0.0;
-    Eigen::VectorXd step = -(scale.asDiagonal() * (eig.eigenvectors() * coeffs));
+    const VecN step = -(scale.asDiagonal() * (eig.eigenvectors() * coeffs));
     // Backtracking keeps the inductances positive and the fitness falling.
     double t = 1.0;
-    Eigen::VectorXd trial = beta + step;
+    VecN trial = beta + step;
     double ft = objective(trial);
     while (!(ft <= f) && t > 1e-6) {
       t *= 0.5;
@@ -151,7 +170,9 @@ BlockFit BlockLeastSquares::fit(const WindowSums& stats, const LinearBlockModel&
     const double improvement = f - ft;
     beta = trial;
     f = ft;
-    if (improvement <= 1e-14 * f || (step * t).cwiseAbs().maxCoeff() == 0.0) break;
+    double relative_step = 0.0;
+    for (int j = 0; j < n; ++j) relative_step = std::max(relative_step, std::abs(t * step(j)) / std::max(std::abs(beta(j)), 1e-300));
+    if (improvement <= 1e-14 * f || relative_step < 1e-10) break;
   }
   objective(beta);
   out.beta = beta;
@@ -177,14 +198,14 @@ BlockFit BlockLeastSquares::fit(const WindowSums& stats, const LinearBlockModel&
     if (!fixed[j]) free.push_back(j);
   while (!free.empty()) {
     const int m = static_cast<int>(free.size());
-    Eigen::MatrixXd Af(m, m);
-    Eigen::VectorXd s(m);
+    MatN Af(m, m);
+    VecN s(m);
     for (int a = 0; a < m; ++a) s(a) = std::max(std::abs(beta(free[a])), 1e-300);
     for (int a = 0; a < m; ++a)
       for (int b = 0; b < m; ++b) Af(a, b) = A(free[a], free[b]) * s(a) * s(b);
     if (!Af.allFinite()) break;
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Af);
-    const Eigen::VectorXd ev = eig.eigenvalues();  // ascending
+    Eigen::SelfAdjointEigenSolver<MatN> eig(Af);
+    const VecN ev = eig.eigenvalues();  // ascending
     const double evmax = ev(m - 1);
     if (!(evmax > 0)) break;
     if (!(ev(0) > 1e-14 * evmax)) {
@@ -193,7 +214,7 @@ BlockFit BlockLeastSquares::fit(const WindowSums& stats, const LinearBlockModel&
       free.erase(free.begin() + worst);
       continue;
     }
-    const Eigen::MatrixXd cov = eig.eigenvectors() * ev.cwiseInverse().asDiagonal() * eig.eigenvectors().transpose();
+    const MatN cov = eig.eigenvectors() * ev.cwiseInverse().asDiagonal() * eig.eigenvectors().transpose();
     for (int a = 0; a < m; ++a) {
       out.standard_deviation(free[a]) = std::sqrt(variance_inflation * std::max(0.0, cov(a, a))) * s(a);
       out.determined[free[a]] = true;

@@ -47,9 +47,13 @@ void BlockStatistics::breakContinuity() {
 }
 
 namespace {
-inline double direction(double a, double b) {
-  const double n = std::hypot(a, b);
-  return n > 0 ? a / n : 0.0;
+// Upper triangle of S += alpha z z^T (small fixed sizes: plain loops beat the general routine).
+template <int N>
+inline void rankOneUpper(Eigen::Matrix<double, N, N>& S, const Eigen::Matrix<double, N, 1>& z, double alpha) {
+  for (int j = 0; j < N; ++j) {
+    const double azj = alpha * z(j);
+    for (int i = 0; i <= j; ++i) S(i, j) += azj * z(i);
+  }
 }
 }  // namespace
 
@@ -62,8 +66,10 @@ bool BlockStatistics::add(const Sample& s) {
   c.omega_e = s.omega_e;
   c.u_d = s.u_d;
   c.u_q = s.u_q;
-  c.dir_d = direction(s.i_d, s.i_q);
-  c.dir_q = direction(s.i_q, s.i_d);
+  const double magnitude2 = s.i_d * s.i_d + s.i_q * s.i_q;
+  const double inverse_magnitude = magnitude2 > 0 ? 1.0 / std::sqrt(magnitude2) : 0.0;
+  c.dir_d = s.i_d * inverse_magnitude;
+  c.dir_q = s.i_q * inverse_magnitude;
   const std::size_t cap = ring_.size();
   if (count_ > 0) {
     const Cumulative& p = ring_[(head_ + count_ - 1) % cap];
@@ -107,14 +113,14 @@ bool BlockStatistics::add(const Sample& s) {
       c.Dir_q - a.Dir_q;
   // Forgetting: every stored sum is implicitly multiplied by lambda; new terms enter with scale_.
   scale_ /= lambda_;
-  S_d_.selfadjointView<Eigen::Upper>().rankUpdate(zd, scale_);
-  S_q_.selfadjointView<Eigen::Upper>().rankUpdate(zq, scale_);
+  rankOneUpper(S_d_, zd, scale_);
+  rankOneUpper(S_q_, zq, scale_);
   stored_weight_ += scale_;
   if (have_previous_block_) {
     const BlockD dd = zd - last_d_;
     const BlockQ dq = zq - last_q_;
-    dS_d_.selfadjointView<Eigen::Upper>().rankUpdate(dd, scale_);
-    dS_q_.selfadjointView<Eigen::Upper>().rankUpdate(dq, scale_);
+    rankOneUpper(dS_d_, dd, scale_);
+    rankOneUpper(dS_q_, dq, scale_);
     stored_difference_weight_ += scale_;
   }
   weight_ = stored_weight_ / scale_;
