@@ -105,11 +105,15 @@ std::string misspecification(const BlockStatistics& stats, const AssessmentSetti
     const BlockFit f = BlockLeastSquares::fit(stats, LinearBlockModel::delay(), s, {}, a.variance_inflation);
     const double d = f.beta(4);
     const bool significant = std::isfinite(d) && std::abs(d) > 0.2 && std::abs(d) > kSignificance * f.standard_deviation(4);
+    const bool fractional = std::abs(d) < 0.7;  // a whole-sample delay shows as |a| near 1
     consider(f, significant,
-             format(d > 0 ? "the voltages act %.2g samples later than declared: raise time.voltage_delay_samples "
-                            "(most drives apply a voltage one period after computing it)"
-                          : "the voltages act %.2g samples earlier than declared: lower time.voltage_delay_samples",
-                    std::abs(d)));
+             fractional ? format("the logged voltage does not hold over the logged period (it fits %.2g samples "
+                                 "of delay): a log decimated from a faster control loop? log every control period",
+                                 d)
+             : format(d > 0 ? "the voltages act %.2g samples later than declared: raise time.voltage_delay_samples "
+                              "(most drives apply a voltage one period after computing it)"
+                            : "the voltages act %.2g samples earlier than declared: lower time.voltage_delay_samples",
+                      std::abs(d)));
   }
   // An inverter voltage error along the current vector (dead time, device drops): relevant when
   // it is more than 1 % of the resistive drop it would otherwise hide in R_s.

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 namespace pmsm_param_id {
@@ -226,6 +227,16 @@ Estimate OnlineIdentifier::estimate() const {
     const bool tested_consistent = fit_cache_.consistent;
     fit_cache_ = fit;
     fit_cache_.consistent = tested_consistent;
+  }
+  // A sampling period no drive uses: the time column's unit is the likely cause (1 kHz - 1 MHz is
+  // the supported range; a control loop slower than 500 Hz cannot run a current loop).
+  const double T = period_.nominal();
+  if (T > 2e-3 || (T > 0 && T < 1e-7)) {
+    char buf[200];
+    std::snprintf(buf, sizeof buf, "the sampling period is %.3g s, outside any drive's control period (1e-6 to 1e-3 s): "
+                  "%s", T, T > 2e-3 ? (T < 2.0 ? "is time in ms?" : "is time in us?") : "is time in a unit other than s?");
+    fit.consistent = false;
+    fit.likely_cause = buf;
   }
   e.fit = fit;
   const Assessment a = assess(e.parameters, e.fit, atBound(), config_.assessment);
