@@ -57,6 +57,10 @@ json estimateJson(const Estimate& e) {
               {"speed_unit_verified", e.fit.speed_unit_verified},
               {"likely_cause", e.fit.likely_cause.empty() ? json(nullptr) : json(e.fit.likely_cause)}};
   j["sample_period"] = numberOrNull(e.sample_period);
+  j["inverter_voltage"] = {{"value", numberOrNull(e.inverter_voltage)},
+                           {"status", toString(e.inverter_status)},
+                           {"reason", e.inverter_reason},
+                           {"relative_uncertainty", numberOrNull(e.inverter_relative_uncertainty)}};
   j["fitness"] = numberOrNull(e.fitness);
   j["samples"] = e.counters.used;
   j["skipped"] = e.counters.skipped();
@@ -100,6 +104,8 @@ void printEstimate(const Estimate& e) {
                 e.fit.consistent ? "consistent with the noise" : "POOR", e.fit.fit_ratio_d, e.fit.fit_ratio_q,
                 e.fit.noise_std_d, e.fit.noise_std_q);
   if (!e.fit.likely_cause.empty()) std::printf("  likely cause: %s\n", e.fit.likely_cause.c_str());
+  if (e.fit.inverter_modelled)
+    std::printf("  inverter voltage = %.4g V %s %s\n", e.inverter_voltage, toString(e.inverter_status), e.inverter_reason.c_str());
   std::printf("  sampling period %.4g s; fitness = %.4g A^2, samples = %llu, skipped = %llu, time resets = %llu, gaps = %llu\n",
               e.sample_period, e.fitness,
               static_cast<unsigned long long>(e.counters.used), static_cast<unsigned long long>(e.counters.skipped()),

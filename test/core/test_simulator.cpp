@@ -166,3 +166,122 @@ TEST(DriveSimulator, SampleCountAndTimesFollowTs) {
   EXPECT_DOUBLE_EQ(d[0].sample.t, 0.0);
   EXPECT_NEAR(d[99].sample.t, 99e-4, 1e-15);
 }
+
+// ---------------------------------------------------------------------------------------------
+// Real-drive effects, each against its theory.
+
+namespace {
+Scenario realDriveBase() {
+  Scenario s = scenario("wc1_drive.yaml");
+  s.sensors = {};
+  s.d_current_injection = Profile::constant(0.0);
+  s.duration = 0.4;
+  return s;
+}
+}  // namespace
+
+// Dead time and device drops: per phase the pole voltage loses V_err sign(i); in d-q the mean
+// error lies along the current vector with magnitude (4/pi) V_err (the six-step fundamental).
+TEST(RealDrive, DeadTimeErrorAlongTheCurrentIsFourOverPiTimesTheErrorVoltage) {
+  Scenario s = realDriveBase();
+  s.inverter.dead_time = 1.5e-6;
+  s.inverter.device_drop = 1.0;
+  s.inverter.zero_crossing_current = 0.01;
+  const auto d = run(s);
+  const double V = d.back().inverter_error_voltage;
+  EXPECT_NEAR(V, 400.0 * 1.5e-6 * 1e4 + 1.0, 1e-9);
+  double along = 0, across = 0;
+  int n = 0;
+  for (const auto& x : d) {
+    if (x.sample.t < 0.2) continue;  // steady state: 1000 rpm, 10 N m, |i| ~ 9 A
+    const double m = std::hypot(x.i_d_true, x.i_q_true);
+    const double ed = x.sample.u_d - x.u_d_applied, eq = x.sample.u_q - x.u_q_applied;
+    along += (ed * x.i_d_true + eq * x.i_q_true) / m;
+    across += (eq * x.i_d_true - ed * x.i_q_true) / m;
+    ++n;
+  }
+  EXPECT_NEAR(along / n, 4.0 / M_PI * V, 0.03 * 4.0 / M_PI * V);
+  EXPECT_LT(std::abs(across / n), 0.05 * V);
+}
+
+// Stationary-frame hold: over a period the held vector turns by -omega_e T_s in the rotor frame,
+// so the mean applied d-q voltage is the reference times sin(wT)/(wT) - j (1 - cos wT)/(wT).
+TEST(RealDrive, StationaryHoldRotatesTheAppliedVoltageByTheSpeed) {
+  Scenario s = realDriveBase();
+  s.inverter.stationary_hold = true;
+  const auto d = run(s);
+  const auto& x = d.back();
+  const double wT = x.sample.omega_e * s.drive.sample_period;
+  const double S = std::sin(wT) / wT, C = (1 - std::cos(wT)) / wT;
+  // The plant's mean over 10 substeps (left points) against the exact mean of the rotation.
+  const double h = 1.0 / s.drive.integration_substeps;
+  double Sn = 0, Cn = 0;
+  for (int j = 0; j < s.drive.integration_substeps; ++j) {
+    Sn += h * std::cos(wT * j * h);
+    Cn += h * std::sin(wT * j * h);
+  }
+  EXPECT_NEAR(x.u_d_applied, Sn * x.sample.u_d + Cn * x.sample.u_q, 1e-9 * std::abs(x.sample.u_q));
+  EXPECT_NEAR(x.u_q_applied, Sn * x.sample.u_q - Cn * x.sample.u_d, 1e-9 * std::abs(x.sample.u_q));
+  EXPECT_NEAR(Sn, S, 0.01 * wT);  // the left-point mean approximates the exact one
+  EXPECT_NEAR(Cn, C, 0.1 * wT);
+}
+
+// One period of computation delay: the voltage computed at t_k acts on [t_k+1, t_k+2). (It is
+// turned into the stator frame with the angle predicted from t_k's speed: 1e-4 relative here.)
+TEST(RealDrive, ComputationDelayAppliesThePreviousReference) {
+  Scenario s = realDriveBase();
+  s.inverter.computation_delay = 1;
+  const auto d = run(s);
+  EXPECT_DOUBLE_EQ(d[0].u_d_applied, 0.0);
+  for (std::size_t k = 1; k < d.size(); k += 97) {
+    EXPECT_NEAR(d[k].u_d_applied, d[k - 1].sample.u_d, 1e-4 * std::hypot(d[k - 1].sample.u_d, d[k - 1].sample.u_q));
+    EXPECT_NEAR(d[k].u_q_applied, d[k - 1].sample.u_q, 1e-4 * std::hypot(d[k - 1].sample.u_d, d[k - 1].sample.u_q));
+  }
+}
+
+// Phase-current sensing: white noise sigma on each of the three phases gives, through the
+// amplitude-invariant Clarke transform, d and q noise of sigma sqrt(2/3); an offset on phase a shows
+// in d-q as a ripple at omega_e of 2/3 of the offset.
+TEST(RealDrive, PhaseCurrentNoiseAndOffsetMapToDq) {
+  Scenario s = realDriveBase();
+  s.sensors.phase_currents = true;
+  s.sensors.current_noise_sigma = 0.05;
+  const auto d = run(s);
+  double sum2 = 0;
+  int n = 0;
+  for (const auto& x : d)
+    if (x.sample.t > 0.2) {
+      sum2 += std::pow(x.sample.i_d - x.i_d_true, 2) + std::pow(x.sample.i_q - x.i_q_true, 2);
+      n += 2;
+    }
+  EXPECT_NEAR(std::sqrt(sum2 / n), 0.05 * std::sqrt(2.0 / 3.0), 0.002);
+  s.sensors.current_noise_sigma = 0.0;
+  s.sensors.phase_offset = {0.1, 0.0, 0.0};
+  const auto o = run(s);
+  double peak = 0;
+  for (const auto& x : o)
+    if (x.sample.t > 0.2) peak = std::max(peak, std::hypot(x.sample.i_d - x.i_d_true, x.sample.i_q - x.i_q_true));
+  EXPECT_NEAR(peak, 2.0 / 3.0 * 0.1, 0.002);
+}
+
+// An incremental encoder: the angle is quantised to 1/(4 lines) of a turn (plus half a count),
+// the speed is the filtered position difference; at constant speed it averages to the truth.
+TEST(RealDrive, EncoderQuantisesTheAngleAndEstimatesTheSpeed) {
+  Scenario s = realDriveBase();
+  s.sensors.encoder_lines = 1000;
+  s.sensors.speed_filter_hz = 200.0;
+  const auto d = run(s);
+  const double count = 2 * M_PI / 4000.0 * s.motor.pole_pairs;  // one count in electrical rad
+  double speed_error = 0;
+  int n = 0;
+  for (const auto& x : d)
+    if (x.sample.t > 0.2) {
+      speed_error += x.sample.omega_e - 1000.0 * 2 * M_PI / 60 * s.motor.pole_pairs;
+      ++n;
+    }
+  EXPECT_LT(std::abs(speed_error / n), 0.005 * 419.0);  // the speed loop holds 1000 rpm on the estimate
+  for (std::size_t k = 0; k < d.size(); k += 101) {
+    const double c = d[k].sample.theta_e / count;  // half-count offset: k + 0.5
+    EXPECT_NEAR(c - std::floor(c), 0.5, 1e-6) << k;
+  }
+}

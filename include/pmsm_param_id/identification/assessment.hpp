@@ -9,6 +9,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string>
 
 #include "pmsm_param_id/identification/block_least_squares.hpp"
@@ -49,11 +50,23 @@ struct FitCheck {
   double speed_scale_short = NAN;  ///< speed-term / current-step-term inductance ratio, fitness window [-]
   double speed_scale_long = NAN;   ///< the same over the long check window [-] (1 when the units are right)
   std::string likely_cause;        ///< one line when the fit is poor and a cause fits the data
+  bool inverter_modelled = false;  ///< the fit estimated an inverter voltage error V with the four
+  double inverter_voltage = 0.0;   ///< V [V] (pole-voltage error amplitude, V_dc t_dead f_sw + drop)
+  double inverter_relative_std = std::numeric_limits<double>::infinity();  ///< of V [-]
 };
 
 /// Exact fit of the window starting from `start` (positive inductances), and its check.
+/// estimate_inverter: fit V with the four parameters (start value inverter_start).
 FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& settings, const ParameterVector& start,
-                  bool diagnose);
+                  bool diagnose, bool estimate_inverter = false, double inverter_start = 0.0);
+
+/// Status of the estimated inverter voltage: identified within max_relative_uncertainty, or why not.
+struct InverterAssessment {
+  ParameterStatus status = ParameterStatus::NoData;
+  std::string reason;
+  double relative_uncertainty = std::numeric_limits<double>::infinity();
+};
+InverterAssessment assessInverter(const FitCheck& fit, const AssessmentSettings& a, double max_relative_uncertainty);
 
 struct Assessment {
   std::array<ParameterStatus, kParameterCount> status{};

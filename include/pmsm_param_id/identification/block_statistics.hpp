@@ -11,7 +11,10 @@
 //
 // Two more integrals per axis are kept for the fit diagnosis (doc/algorithm.md section 4):
 //   int(u_k - u_{k-1}) dt   a voltage applied one sample late or early adds a multiple of it;
-//   int(i / |i|) dt         an inverter voltage error along the current vector adds a multiple of it.
+//   int(s) dt               an inverter voltage error V adds -V times it: s is the d-q image of the
+//                           phase-current signs, Park(theta_e) Clarke(sign(i_a), sign(i_b), sign(i_c)),
+//                           when the sample has the electrical angle, else its mean along the
+//                           current vector, (4/pi) i/|i| (the 6 omega_e ripple is then unknown).
 //
 // The fitness is the exponentially forgotten mean of r_d^2 + r_q^2. Since r is linear in the block
 // vector z with parameter-dependent weights, it only needs S = sum lambda^n z z^T, so one
@@ -34,6 +37,8 @@ struct WindowSettings {
   double block_length = 0.005;             ///< length of one fitness block [s] (whole sampling periods)
   double forgetting_time_constant = 0.05;  ///< exponential forgetting of the fitness window [s]
   double long_time_constant = 10.0;        ///< forgetting of the long check window [s] (unit checks)
+  bool stationary_hold = false;            ///< the inverter holds the voltage in the stator frame
+  double inverter_zero_crossing_current = 0.0;  ///< the inverter error passes zero as tanh(i / this) [A]; 0 = sign
   int voltage_delay_samples = 0;           ///< 0: u(t_k) acts on [t_k, t_k+1); 1: on [t_k+1, t_k+2)
 };
 
@@ -42,9 +47,9 @@ enum BlockEntryD : int {
   kDeltaId = 0,          ///< i_d(t_k) - i_d(t_j) [A]
   kIntegralId,           ///< int i_d dt [A s]
   kIntegralOmegaIq,      ///< int omega_e i_q dt [A]
-  kIntegralUd,           ///< int u_d dt [V s]
+  kIntegralUd,           ///< int u_d dt [V s] (the voltage acting: delay and hold applied)
+  kIntegralInverterD,    ///< int s_d dt [s]: shape of the inverter voltage error (see below)
   kIntegralUdStep,       ///< int (u_d,k - u_d,k-1) dt [V s] (delay diagnosis)
-  kIntegralIdDirection,  ///< int i_d / |i| dt [s] (inverter-error diagnosis)
   kBlockSizeD
 };
 /// Entries of the q-axis block vector.
@@ -54,14 +59,18 @@ enum BlockEntryQ : int {
   kIntegralOmegaId,      ///< int omega_e i_d dt [A]
   kIntegralUq,           ///< [V s]
   kIntegralOmega,        ///< int omega_e dt [rad]
+  kIntegralInverterQ,    ///< int s_q dt [s]
   kIntegralUqStep,       ///< [V s]
-  kIntegralIqDirection,  ///< [s]
   kBlockSizeQ
 };
 using BlockD = Eigen::Matrix<double, kBlockSizeD, 1>;
 using BlockQ = Eigen::Matrix<double, kBlockSizeQ, 1>;
 using ProductD = Eigen::Matrix<double, kBlockSizeD, kBlockSizeD>;
 using ProductQ = Eigen::Matrix<double, kBlockSizeQ, kBlockSizeQ>;
+
+/// The inverter error shape s of a sample (see the header comment): from the angle when the sample
+/// has it, else (4/pi) i/|i|. Unitless, |s| ~ 1.
+void inverterShape(const Sample& s, double& shape_d, double& shape_q);
 
 /// The sums of one window as the solvers need them (means of z z^T, the effective block count).
 struct WindowSums {
@@ -99,23 +108,29 @@ class BlockStatistics {
     if (weight_ <= 0) return std::numeric_limits<double>::infinity();
     const double inv = 1.0 / (p[kLd] * p[kLq]);  // one division for both 1/L_d and 1/L_q
     const double inv_Ld = p[kLq] * inv, inv_Lq = p[kLd] * inv;
-    const double wd[4] = {1.0, p[kRs] * inv_Ld, -p[kLq] * inv_Ld, -inv_Ld};
-    const double wq[5] = {1.0, p[kRs] * inv_Lq, p[kLd] * inv_Lq, -inv_Lq, p[kPsiF] * inv_Lq};
+    // With a known inverter voltage V the reference voltage overstates the applied one by V s.
+    const double V = inverter_voltage_;
+    const double wd[5] = {1.0, p[kRs] * inv_Ld, -p[kLq] * inv_Ld, -inv_Ld, V * inv_Ld};
+    const double wq[6] = {1.0, p[kRs] * inv_Lq, p[kLd] * inv_Lq, -inv_Lq, p[kPsiF] * inv_Lq, V * inv_Lq};
+    const int nd = V != 0.0 ? 5 : 4, nq = V != 0.0 ? 6 : 5;
     // Quadratic forms on the upper triangles (the lower ones are not maintained).
     double f = 0.0;
-    for (int i = 0; i < 4; ++i) {
+    for (int i = 0; i < nd; ++i) {
       double row = 0.5 * S_d_(i, i) * wd[i];
-      for (int j = i + 1; j < 4; ++j) row += S_d_(i, j) * wd[j];
+      for (int j = i + 1; j < nd; ++j) row += S_d_(i, j) * wd[j];
       f += wd[i] * row;
     }
-    for (int i = 0; i < 5; ++i) {
+    for (int i = 0; i < nq; ++i) {
       double row = 0.5 * S_q_(i, i) * wq[i];
-      for (int j = i + 1; j < 5; ++j) row += S_q_(i, j) * wq[j];
+      for (int j = i + 1; j < nq; ++j) row += S_q_(i, j) * wq[j];
       f += wq[i] * row;
     }
     return std::max(0.0, 2.0 * f / stored_weight_);
   }
 
+  /// The inverter voltage the fitness subtracts (0: none) [V]; set from the data's exact fit.
+  void setInverterVoltage(double v) { inverter_voltage_ = v; }
+  double inverterVoltage() const { return inverter_voltage_; }
   bool hasBlocks() const { return weight_ > 0; }
   /// Sum of the forgetting weights of the blocks in the window [-] (the effective block count).
   double weight() const { return weight_; }
@@ -144,9 +159,12 @@ class BlockStatistics {
     double applied_d, applied_q;            // voltage acting on [t, t_next)
     double applied_prev_d, applied_prev_q;  // voltage that acted on the period before
     double u_d, u_q;                        // the sample's own (commanded) voltage
-    double I_d, I_q, OmIq, OmId, U_d, U_q, Om, Ustep_d, Ustep_q, Dir_d, Dir_q;
-    double dir_d, dir_q;                    // i / |i| at the sample
+    double I_d, I_q, OmIq, OmId, U_d, U_q, Om, Ustep_d, Ustep_q, Inv_d, Inv_q;
+    double shape_d, shape_q;                // inverter error shape s at the sample
+    double theta_e;                         // electrical angle (NaN when not logged)
   };
+  void inverterShapeIntegral(const Cumulative& previous, const Cumulative& current, const Sample& s, double dt,
+                             double& int_d, double& int_q) const;
   void rescale();
 
   WindowSettings settings_;
@@ -163,6 +181,7 @@ class BlockStatistics {
   double scale_ = 1.0;   // 1 / product of forgetting factors
   double weight_ = 0.0, difference_weight_ = 0.0;
   std::uint64_t blocks_ = 0;
+  double inverter_voltage_ = 0.0;
   bool have_previous_block_ = false;
   ProductD long_d_ = ProductD::Zero();
   ProductQ long_q_ = ProductQ::Zero();

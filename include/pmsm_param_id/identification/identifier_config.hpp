@@ -42,6 +42,12 @@ struct AssessmentSettings {
   double min_relative_uncertainty = 0.002; ///< the stated uncertainty is never below this (sampling effects) [-]
 };
 
+/// What the identifier knows about the drive's inverter (doc/algorithm.md section 8).
+struct InverterModelSettings {
+  bool estimate_voltage = false;  ///< estimate the inverter voltage error V with R_s, L_d, L_q, psi_f
+  double max_relative_uncertainty = 0.05;  ///< V is identified within this [-]
+};
+
 struct TimeSettings {
   double sample_period = 0.0;   ///< nominal sampling period [s]; 0 = median of the stream's steps
   double max_gap_periods = 3.0; ///< a step longer than this many nominal periods is a gap [-]
@@ -60,6 +66,7 @@ struct IdentifierConfig {
   RlsSettings rls;
   AssessmentSettings assessment;
   TimeSettings time;
+  InverterModelSettings inverter;
 };
 
 /// Known method names, in the order reports use.

@@ -65,7 +65,8 @@ class EkfIdentifier : public OnlineIdentifier {
 
 /// Recursive least squares with exponential forgetting on the integrated voltage equations,
 /// which are linear in the parameters:
-///   U_d = R_s I_d + L_d Di_d - L_q W_d,   U_q = R_s I_q + L_q Di_q + L_d W_q + psi_f Om.
+///   U_d = R_s I_d + L_d Di_d - L_q W_d (+ V S_d),   U_q = R_s I_q + L_q Di_q + L_d W_q + psi_f Om (+ V S_q),
+/// with the inverter voltage V as a fifth parameter when the config asks for it.
 class RlsIdentifier : public OnlineIdentifier {
  public:
   explicit RlsIdentifier(const IdentifierConfig& config);
@@ -77,8 +78,10 @@ class RlsIdentifier : public OnlineIdentifier {
   void restart() override;
 
  private:
-  Eigen::Vector4d theta_ = Eigen::Vector4d::Zero();
-  Eigen::Matrix4d P_ = Eigen::Matrix4d::Identity();
+  using Vec5 = Eigen::Matrix<double, 5, 1>;
+  using Mat5 = Eigen::Matrix<double, 5, 5>;
+  Vec5 theta_ = Vec5::Zero();  // {R_s, L_d, L_q, psi_f, V}; V stays 0 unless inverter.model: estimate
+  Mat5 P_ = Mat5::Identity();
   double last_t_ = 0.0;
   bool have_last_ = false;
 };

@@ -43,6 +43,10 @@ struct Estimate {
   std::array<bool, kParameterCount> identifiable{};  ///< status == identified
   ParameterVector relative_uncertainty{};  ///< stated uncertainty / value [-] (inf when unknown)
   FitCheck fit;                     ///< the data's own fit and its check
+  double inverter_voltage = 0.0;    ///< estimated inverter error voltage [V] (NaN when not modelled)
+  ParameterStatus inverter_status = ParameterStatus::NoData;
+  std::string inverter_reason;
+  double inverter_relative_uncertainty = 0.0;  ///< [-]
   double fitness = 0.0;             ///< mean squared block current error at the estimate [A^2]
   double sample_period = 0.0;       ///< nominal sampling period in use [s] (0 while unknown)
   std::uint64_t iteration = 0;      ///< swarm iterations (0 for ekf, rls)
@@ -106,6 +110,7 @@ class OnlineIdentifier {
  private:
   SampleStatus processTimed(const Sample& s, SampleStatus status);
   bool tryStart();
+  void useInverterVoltage(const FitCheck& fit);
   void setBox(const ParameterVector& centre);
 
   IdentifierCounters counters_;

@@ -19,6 +19,9 @@ struct SimulatedSample {
   double i_q_reference = 0.0;  ///< [A]
   double load_torque = 0.0;    ///< [N m]
   bool voltage_limited = false;
+  double u_d_applied = 0.0;    ///< d-axis voltage the motor received, mean over the period [V]
+  double u_q_applied = 0.0;    ///< [V]
+  double inverter_error_voltage = 0.0;  ///< pole-voltage error amplitude V_dc t_dead f_sw + drop [V]
 };
 
 class DriveSimulator {
@@ -39,6 +42,7 @@ class DriveSimulator {
 
  private:
   double measure(double true_current);
+  double busVoltage(double t) const;
 
   Scenario scenario_;
   PlantState x_;
@@ -48,6 +52,10 @@ class DriveSimulator {
   std::normal_distribution<double> noise_{0.0, 1.0};
   // controller state
   double speed_integral_ = 0.0;  // i_q reference integral part [A]
+  double encoder_previous_ = 0.0;  // last measured mechanical angle [rad]
+  double speed_estimate_ = 0.0;    // filtered mechanical speed from the encoder [rad/s]
+  // computation delay: the reference computed at the previous sample and its conversion angle
+  double pending_u_d_ = 0.0, pending_u_q_ = 0.0, pending_angle_ = 0.0;
   double d_integral_ = 0.0;      // [V]
   double q_integral_ = 0.0;      // [V]
   // controller gains (from nominal parameters)

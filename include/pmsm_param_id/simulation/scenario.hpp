@@ -1,5 +1,6 @@
 // A simulated drive run: motor, inverter/controller settings, input profiles and sensors.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <string>
 
@@ -17,16 +18,40 @@ struct DriveSettings {
   double speed_loop_bandwidth_hz = 20.0;      ///< PI speed loop [Hz]
 };
 
+/// What a real inverter does to the commanded voltage (all off by default: the paper tier).
+struct InverterSettings {
+  double dead_time = 0.0;              ///< [s]; the pole-voltage error is V_dc t_dead f_sw + device_drop
+  double switching_frequency = 0.0;    ///< [Hz]; 0 = 1 / sample_period
+  double device_drop = 0.0;            ///< on-state voltage of a switch or diode [V]
+  double zero_crossing_current = 0.1;  ///< the error passes zero smoothly, tanh(i / this) [A]
+  bool stationary_hold = false;        ///< hold the voltage vector in the stator (alpha-beta) frame
+  int computation_delay = 0;           ///< periods between computing a voltage and applying it: 0 or 1
+  double dc_ripple = 0.0;              ///< relative amplitude of a sinusoidal DC-bus ripple [-]
+  double dc_ripple_frequency = 300.0;  ///< [Hz]
+  /// Pole-voltage error amplitude [V] at bus voltage v_dc.
+  double errorVoltage(double v_dc, double sample_period) const {
+    const double f = switching_frequency > 0 ? switching_frequency : 1.0 / sample_period;
+    return dead_time > 0 || device_drop > 0 ? v_dc * dead_time * f + device_drop : 0.0;
+  }
+  bool active() const { return dead_time > 0 || device_drop > 0 || stationary_hold || computation_delay > 0 || dc_ripple > 0; }
+};
+
 struct SensorSettings {
-  double current_noise_sigma = 0.0;  ///< white Gaussian noise on measured i_d, i_q [A]
+  double current_noise_sigma = 0.0;  ///< white Gaussian noise on each measured current [A]
   int adc_bits = 0;                  ///< quantisation of measured currents; 0 = none
   double adc_range = 50.0;           ///< full scale +-adc_range [A]
+  bool phase_currents = false;       ///< errors act on the phase currents a, b, c (else on d, q)
+  std::array<double, 3> phase_offset{0, 0, 0};  ///< per-phase offset [A] (phase_currents only)
+  std::array<double, 3> phase_gain{1, 1, 1};    ///< per-phase gain [-] (phase_currents only)
+  int encoder_lines = 0;             ///< 0: exact angle and speed; else an incremental encoder (4x counts)
+  double speed_filter_hz = 1000.0;   ///< speed = filtered position difference, first-order cut-off [Hz]
 };
 
 struct Scenario {
   std::string name;
   MotorParameters motor;
   DriveSettings drive;
+  InverterSettings inverter;
   SensorSettings sensors;
   double duration = 0.5;  ///< [s]
   uint64_t seed = 1;

@@ -79,7 +79,21 @@ SpeedScaleTest speedScaleTest(const WindowSums& window, const AssessmentSettings
   return out;
 }
 
-std::string misspecification(const BlockStatistics& stats, const AssessmentSettings& a, const FitCheck& fit) {
+// The window with the reference voltages corrected by a known inverter voltage: U <- U - V int(s).
+WindowSums compensated(WindowSums w, double V) {
+  if (V == 0.0) return w;
+  ProductD Ad = ProductD::Identity();
+  Ad(kIntegralUd, kIntegralInverterD) = -V;
+  ProductQ Aq = ProductQ::Identity();
+  Aq(kIntegralUq, kIntegralInverterQ) = -V;
+  w.mean_d = Ad * w.mean_d * Ad.transpose();
+  w.mean_q = Aq * w.mean_q * Aq.transpose();
+  w.mean_difference_d = Ad * w.mean_difference_d * Ad.transpose();
+  w.mean_difference_q = Aq * w.mean_difference_q * Aq.transpose();
+  return w;
+}
+
+std::string misspecification(const WindowSums& window, const AssessmentSettings& a, const FitCheck& fit) {
   Eigen::VectorXd start4(4);
   for (int p = 0; p < kParameterCount; ++p) start4(p) = fit.optimum[p];
   std::string best;
@@ -95,14 +109,14 @@ std::string misspecification(const BlockStatistics& stats, const AssessmentSetti
   // controller's reaction to noise (the ratio came out 0.5-0.73 on correct robot-joint data), so the
   // speed scale only names the cause of a fit that already failed; the long window tests it.
   if (!fit.consistent) {
-    const SpeedScaleTest t = speedScaleTest(stats.window(), a, fit);
+    const SpeedScaleTest t = speedScaleTest(window, a, fit);
     consider(t.fit, t.significant, t.text);
   }
   // A voltage that acts a sample later or earlier than declared.
   {
     Eigen::VectorXd s(5);
     s << start4, 0.0;
-    const BlockFit f = BlockLeastSquares::fit(stats, LinearBlockModel::delay(), s, {}, a.variance_inflation);
+    const BlockFit f = BlockLeastSquares::fit(window, LinearBlockModel::delay(), s, {}, a.variance_inflation);
     const double d = f.beta(4);
     const bool significant = std::isfinite(d) && std::abs(d) > 0.2 && std::abs(d) > kSignificance * f.standard_deviation(4);
     const bool fractional = std::abs(d) < 0.7;  // a whole-sample delay shows as |a| near 1
@@ -117,14 +131,14 @@ std::string misspecification(const BlockStatistics& stats, const AssessmentSetti
   }
   // An inverter voltage error along the current vector (dead time, device drops): relevant when
   // it is more than 1 % of the resistive drop it would otherwise hide in R_s.
-  {
+  if (!fit.inverter_modelled) {
     Eigen::VectorXd s(5);
     s << start4, 0.0;
-    const BlockFit f = BlockLeastSquares::fit(stats, LinearBlockModel::inverter(), s, {}, a.variance_inflation);
+    const BlockFit f = BlockLeastSquares::fit(window, LinearBlockModel::inverter(), s, {}, a.variance_inflation);
     const double V = f.beta(4);
-    const ProductD Sd = stats.meanProductD();
-    const ProductQ Sq = stats.meanProductQ();
-    const double Tb = stats.blockDuration();
+    const ProductD& Sd = window.mean_d;
+    const ProductQ& Sq = window.mean_q;
+    const double Tb = window.block_duration;
     const double current_rms = std::sqrt((Sd(kIntegralId, kIntegralId) + Sq(kIntegralIq, kIntegralIq))) / Tb;
     const bool significant = std::isfinite(V) && V > 0.01 * f.beta(kRs) * current_rms &&
                              V > kSignificance * f.standard_deviation(4);
@@ -137,15 +151,22 @@ std::string misspecification(const BlockStatistics& stats, const AssessmentSetti
 }  // namespace
 
 FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, const ParameterVector& start,
-                  bool diagnose_misfit) {
+                  bool diagnose_misfit, bool estimate_inverter, double inverter_start) {
   FitCheck out;
   out.relative_std.fill(std::numeric_limits<double>::infinity());
   if (!stats.hasBlocks()) return out;
-  Eigen::VectorXd s(4);
+  Eigen::VectorXd s(estimate_inverter ? 5 : 4);
   for (int p = 0; p < kParameterCount; ++p) s(p) = start[p];
-  const BlockFit f = BlockLeastSquares::fit(stats, LinearBlockModel::paper(), s, {}, a.variance_inflation);
+  if (estimate_inverter) s(4) = inverter_start;
+  const LinearBlockModel& model = estimate_inverter ? LinearBlockModel::inverter() : LinearBlockModel::paper();
+  const BlockFit f = BlockLeastSquares::fit(stats, model, s, {}, a.variance_inflation);
   if (!f.ok) return out;
   out.available = true;
+  if (estimate_inverter) {
+    out.inverter_modelled = true;
+    out.inverter_voltage = f.beta(4);
+    out.inverter_relative_std = f.standard_deviation(4) / std::abs(f.beta(4));
+  }
   for (int p = 0; p < kParameterCount; ++p) {
     out.optimum[p] = f.beta(p);
     out.determined[p] = f.determined[p];
@@ -166,11 +187,13 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   out.consistent = fitsAtNoise(f.mean_square_d, f.noise_variance_d, floor2, a.max_fit_ratio) &&
                    fitsAtNoise(f.mean_square_q, f.noise_variance_q, floor2, a.max_fit_ratio);
   if (diagnose_misfit) {
-    std::string cause = misspecification(stats, a, out);
+    const double V = out.inverter_modelled ? out.inverter_voltage : 0.0;
+    const WindowSums window = compensated(stats.window(), V);
+    std::string cause = misspecification(window, a, out);
     // The unit of the speed shows only where the window holds q-axis current steps; the fitness
     // window may have forgotten them (a start-up, a load step), the long window has not.
-    WindowSums long_window = stats.longWindow();
-    const SpeedScaleTest short_test = speedScaleTest(stats.window(), a, out);
+    WindowSums long_window = compensated(stats.longWindow(), V);
+    const SpeedScaleTest short_test = speedScaleTest(window, a, out);
     out.speed_unit_verified = short_test.verified;
     out.speed_scale_short = short_test.scale;
     if (long_window.hasBlocks()) {
@@ -185,6 +208,32 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
       out.consistent = false;
       out.likely_cause = cause;
     }
+  }
+  return out;
+}
+
+InverterAssessment assessInverter(const FitCheck& fit, const AssessmentSettings& a, double limit) {
+  InverterAssessment out;
+  if (!fit.inverter_modelled || !fit.available) {
+    out.reason = fit.inverter_modelled ? "no data yet" : "not modelled (inverter.model: none)";
+    return out;
+  }
+  const double V = fit.inverter_voltage;
+  out.relative_uncertainty = a.confidence_sigmas * fit.inverter_relative_std;
+  if (!std::isfinite(V) || V < 0) {
+    out.status = ParameterStatus::Implausible;
+    out.reason = format("%.3g V: an inverter error voltage is positive", V);
+  } else if (!fit.consistent) {
+    out.status = ParameterStatus::PoorFit;
+    out.reason = "the model does not fit the data";
+  } else if (!(out.relative_uncertainty <= limit)) {
+    out.status = ParameterStatus::NotExcited;
+    out.reason = std::isfinite(out.relative_uncertainty)
+                     ? format("the data determine it only to +-%.3g %% (need %.3g %%)", 100 * out.relative_uncertainty, 100 * limit)
+                     : "the data do not determine it";
+  } else {
+    out.status = ParameterStatus::Identified;
+    out.reason = format("+-%.3g %%", 100 * out.relative_uncertainty);
   }
   return out;
 }

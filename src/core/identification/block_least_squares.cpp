@@ -84,8 +84,8 @@ const LinearBlockModel& LinearBlockModel::inverter() {
     LinearBlockModel m = base(1);
     m.name = "inverter";
     m.parameter_names.push_back("inverter_voltage");
-    m.G_d(kIntegralIdDirection, 4) = 1.0;
-    m.G_q(kIntegralIqDirection, 4) = 1.0;
+    m.G_d(kIntegralInverterD, 4) = 1.0;
+    m.G_q(kIntegralInverterQ, 4) = 1.0;
     return m;
   }();
   return model;

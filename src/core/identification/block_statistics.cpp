@@ -1,5 +1,6 @@
 #include "pmsm_param_id/identification/block_statistics.hpp"
 
+#include <array>
 #include <cmath>
 #include <stdexcept>
 
@@ -46,6 +47,72 @@ void BlockStatistics::breakContinuity() {
   blocks_in_stretch_ = 0;
 }
 
+void inverterShape(const Sample& s, double& shape_d, double& shape_q) {
+  if (std::isfinite(s.theta_e)) {
+    // Phase currents from the measured d-q currents and the angle, then the d-q image of their signs.
+    const double c = std::cos(s.theta_e), sn = std::sin(s.theta_e);
+    const double alpha = c * s.i_d - sn * s.i_q, beta = sn * s.i_d + c * s.i_q;
+    const double h = std::sqrt(3.0) / 2.0;
+    const auto sign = [](double x) { return x > 0 ? 1.0 : (x < 0 ? -1.0 : 0.0); };
+    const double a = sign(alpha), b = sign(-0.5 * alpha + h * beta), cc = sign(-0.5 * alpha - h * beta);
+    const double sa = (2.0 * a - b - cc) / 3.0, sb = (b - cc) / std::sqrt(3.0);
+    shape_d = c * sa + sn * sb;
+    shape_q = -sn * sa + c * sb;
+    return;
+  }
+  const double magnitude2 = s.i_d * s.i_d + s.i_q * s.i_q;
+  const double k = magnitude2 > 0 ? (4.0 / M_PI) / std::sqrt(magnitude2) : 0.0;  // fundamental of the six-step shape
+  shape_d = s.i_d * k;
+  shape_q = s.i_q * k;
+}
+
+namespace {
+// Phase currents a, b, c from d-q currents and the electrical angle.
+inline std::array<double, 3> phaseCurrents(double i_d, double i_q, double theta) {
+  const double c = std::cos(theta), sn = std::sin(theta);
+  const double alpha = c * i_d - sn * i_q, beta = sn * i_d + c * i_q;
+  const double h = std::sqrt(3.0) / 2.0;
+  return {alpha, -0.5 * alpha + h * beta, -0.5 * alpha - h * beta};
+}
+}  // namespace
+
+void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulative& c, const Sample& s, double dt,
+                                            double& int_d, double& int_q) const {
+  if (!(std::isfinite(p.theta_e) && std::isfinite(s.theta_e))) {  // no angle: trapezoid of (4/pi) i/|i|
+    int_d = 0.5 * dt * (p.shape_d + c.shape_d);
+    int_q = 0.5 * dt * (p.shape_q + c.shape_q);
+    return;
+  }
+  // The sign of each phase current is piecewise constant; a sign change between the samples is
+  // placed where the linearly interpolated current crosses zero (a trapezoid would smear every
+  // crossing over a whole period: a misfit of about V T / 2 per crossing).
+  const std::array<double, 3> a = phaseCurrents(p.i_d, p.i_q, p.theta_e);
+  const std::array<double, 3> b = phaseCurrents(c.i_d, c.i_q, s.theta_e);
+  const auto sign = [](double x) { return x > 0 ? 1.0 : (x < 0 ? -1.0 : 0.0); };
+  std::array<double, 3> mean{};
+  const double width = settings_.inverter_zero_crossing_current;
+  for (int k = 0; k < 3; ++k) {
+    const double ia = a[static_cast<std::size_t>(k)], ib = b[static_cast<std::size_t>(k)];
+    if (width > 0) {  // smooth: tanh(i / width), Simpson's rule on the linearly interpolated current
+      mean[static_cast<std::size_t>(k)] =
+          (std::tanh(ia / width) + 4.0 * std::tanh(0.5 * (ia + ib) / width) + std::tanh(ib / width)) / 6.0;
+      continue;
+    }
+    const double sa = sign(ia), sb = sign(ib);
+    if (sa == sb) {
+      mean[static_cast<std::size_t>(k)] = sa;
+    } else {
+      const double f = ia / (ia - ib);
+      mean[static_cast<std::size_t>(k)] = f * sa + (1.0 - f) * sb;
+    }
+  }
+  const double sa = (2.0 * mean[0] - mean[1] - mean[2]) / 3.0, sb = (mean[1] - mean[2]) / std::sqrt(3.0);
+  const double mid = p.theta_e + 0.5 * dt * p.omega_e;  // rotor angle at mid-period
+  const double cm = std::cos(mid), sm = std::sin(mid);
+  int_d = dt * (cm * sa + sm * sb);
+  int_q = dt * (-sm * sa + cm * sb);
+}
+
 namespace {
 // Upper triangle of S += alpha z z^T (small fixed sizes: plain loops beat the general routine).
 template <int N>
@@ -66,10 +133,8 @@ bool BlockStatistics::add(const Sample& s) {
   c.omega_e = s.omega_e;
   c.u_d = s.u_d;
   c.u_q = s.u_q;
-  const double magnitude2 = s.i_d * s.i_d + s.i_q * s.i_q;
-  const double inverse_magnitude = magnitude2 > 0 ? 1.0 / std::sqrt(magnitude2) : 0.0;
-  c.dir_d = s.i_d * inverse_magnitude;
-  c.dir_q = s.i_q * inverse_magnitude;
+  c.theta_e = s.theta_e;
+  inverterShape(s, c.shape_d, c.shape_q);
   const std::size_t cap = ring_.size();
   if (count_ > 0) {
     const Cumulative& p = ring_[(head_ + count_ - 1) % cap];
@@ -85,12 +150,24 @@ bool BlockStatistics::add(const Sample& s) {
     c.OmIq = p.OmIq + h * (p.omega_e * p.i_q + s.omega_e * s.i_q);
     c.OmId = p.OmId + h * (p.omega_e * p.i_d + s.omega_e * s.i_d);
     c.Om = p.Om + h * (p.omega_e + s.omega_e);
-    c.U_d = p.U_d + dt * p.applied_d;  // zero-order hold over [t_j, t_j+1)
-    c.U_q = p.U_q + dt * p.applied_q;
+    if (settings_.stationary_hold) {
+      // The vector held in the stator frame turns by -omega_e t in the rotor frame:
+      // int_0^dt e^{-j w t} dt = sin(w dt)/w - j (1 - cos(w dt))/w, applied to u_d + j u_q.
+      const double w = p.omega_e, wdt = w * dt;
+      const double S = std::abs(wdt) > 1e-6 ? std::sin(wdt) / w : dt * (1.0 - wdt * wdt / 6.0);
+      const double C = std::abs(wdt) > 1e-6 ? (1.0 - std::cos(wdt)) / w : 0.5 * wdt * dt;
+      c.U_d = p.U_d + S * p.applied_d + C * p.applied_q;
+      c.U_q = p.U_q + S * p.applied_q - C * p.applied_d;
+    } else {
+      c.U_d = p.U_d + dt * p.applied_d;  // zero-order hold over [t_j, t_j+1) in the rotor frame
+      c.U_q = p.U_q + dt * p.applied_q;
+    }
     c.Ustep_d = p.Ustep_d + dt * (p.applied_d - p.applied_prev_d);
     c.Ustep_q = p.Ustep_q + dt * (p.applied_q - p.applied_prev_q);
-    c.Dir_d = p.Dir_d + h * (p.dir_d + c.dir_d);
-    c.Dir_q = p.Dir_q + h * (p.dir_q + c.dir_q);
+    double inv_d = 0.0, inv_q = 0.0;
+    inverterShapeIntegral(p, c, s, dt, inv_d, inv_q);
+    c.Inv_d = p.Inv_d + inv_d;
+    c.Inv_q = p.Inv_q + inv_q;
   } else {
     // First sample of a stretch: with a declared delay the voltage acting now is unknown; the
     // commanded one stands in for the first period only (one period in a block of M).
@@ -108,9 +185,9 @@ bool BlockStatistics::add(const Sample& s) {
   const Cumulative& a = ring_[head_];  // M periods back
   BlockD zd;
   BlockQ zq;
-  zd << c.i_d - a.i_d, c.I_d - a.I_d, c.OmIq - a.OmIq, c.U_d - a.U_d, c.Ustep_d - a.Ustep_d, c.Dir_d - a.Dir_d;
-  zq << c.i_q - a.i_q, c.I_q - a.I_q, c.OmId - a.OmId, c.U_q - a.U_q, c.Om - a.Om, c.Ustep_q - a.Ustep_q,
-      c.Dir_q - a.Dir_q;
+  zd << c.i_d - a.i_d, c.I_d - a.I_d, c.OmIq - a.OmIq, c.U_d - a.U_d, c.Inv_d - a.Inv_d, c.Ustep_d - a.Ustep_d;
+  zq << c.i_q - a.i_q, c.I_q - a.I_q, c.OmId - a.OmId, c.U_q - a.U_q, c.Om - a.Om, c.Inv_q - a.Inv_q,
+      c.Ustep_q - a.Ustep_q;
   // Forgetting: every stored sum is implicitly multiplied by lambda; new terms enter with scale_.
   scale_ /= lambda_;
   rankOneUpper(S_d_, zd, scale_);
@@ -151,7 +228,7 @@ bool BlockStatistics::add(const Sample& s) {
     for (Cumulative& e : ring_) {
       e.I_d -= base.I_d; e.I_q -= base.I_q; e.OmIq -= base.OmIq; e.OmId -= base.OmId;
       e.U_d -= base.U_d; e.U_q -= base.U_q; e.Om -= base.Om; e.Ustep_d -= base.Ustep_d;
-      e.Ustep_q -= base.Ustep_q; e.Dir_d -= base.Dir_d; e.Dir_q -= base.Dir_q;
+      e.Ustep_q -= base.Ustep_q; e.Inv_d -= base.Inv_d; e.Inv_q -= base.Inv_q;
     }
   }
   return true;

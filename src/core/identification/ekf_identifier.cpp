@@ -69,7 +69,15 @@ void EkfIdentifier::update(const Sample& s, bool, bool continuity_broken) {
     have_previous_ = true;
     return;
   }
-  const Sample& k = previous_;
+  // The previous sample's voltage as the motor received it: less the inverter voltage the data's
+  // exact fit estimates (0 unless inverter.model: estimate).
+  Sample k = previous_;
+  if (stats_.inverterVoltage() != 0.0) {
+    double sd = 0.0, sq = 0.0;
+    inverterShape(k, sd, sq);
+    k.u_d -= stats_.inverterVoltage() * sd;
+    k.u_q -= stats_.inverterVoltage() * sq;
+  }
   const double T = s.t - k.t;
   Mat6 F;
   const Vec6 xp = ekfPredict(x_, k, T, &F);

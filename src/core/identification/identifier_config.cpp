@@ -120,6 +120,16 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   c.time.sample_period = y.number("time.sample_period", c.time.sample_period);
   c.time.max_gap_periods = y.number("time.max_gap_periods", c.time.max_gap_periods);
   c.window.voltage_delay_samples = static_cast<int>(y.integer("time.voltage_delay_samples", 0, 0, 1));
+  const std::string hold = y.text("time.voltage_hold", "dq");
+  if (hold != "dq" && hold != "stationary") y.fail("time.voltage_hold", "expected dq or stationary, got '" + hold + "'");
+  c.window.stationary_hold = hold == "stationary";
+  const std::string model = y.text("inverter.model", "none");
+  if (model != "none" && model != "estimate") y.fail("inverter.model", "expected none or estimate, got '" + model + "'");
+  c.inverter.estimate_voltage = model == "estimate";
+  c.window.inverter_zero_crossing_current = y.number("inverter.zero_crossing_current", 0.0);
+  if (c.window.inverter_zero_crossing_current < 0) y.fail("inverter.zero_crossing_current", "must be >= 0 [A] (0 = sign)");
+  c.inverter.max_relative_uncertainty =
+      y.positive("inverter.max_relative_uncertainty", c.inverter.max_relative_uncertainty);
   y.rejectUnknownKeys();
   validate(c, path);
   return c;

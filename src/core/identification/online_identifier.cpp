@@ -156,7 +156,7 @@ bool OnlineIdentifier::tryStart() {
   } else if (search.has_initial) {
     setBox(search.initial);
   } else {
-    const FitCheck fit = checkFit(stats_, config_.assessment, kGenericCentre, false);
+    const FitCheck fit = checkFit(stats_, config_.assessment, kGenericCentre, false, config_.inverter.estimate_voltage);
     if (!fit.available) return false;
     const auto usable = [&](int p) {
       return fit.determined[p] && fit.relative_std[p] <= kCentringRelativeStd && plausible(p, fit.optimum[p]);
@@ -168,17 +168,28 @@ bool OnlineIdentifier::tryStart() {
     if (!usable(kLd)) centre[kLd] = centre[kLq];
     if (!usable(kLq)) centre[kLq] = centre[kLd];
     noise_std_ = std::max(fit.noise_std_d, fit.noise_std_q);
+    useInverterVoltage(fit);
     setBox(centre);
   }
   restart();
   return true;
 }
 
+void OnlineIdentifier::useInverterVoltage(const FitCheck& fit) {
+  // The swarm's fitness (and RLS, EKF) take the data's estimate of the inverter voltage as known:
+  // the paper's swarm searches four dimensions; V is profiled out by the exact fit.
+  if (!fit.inverter_modelled) return;
+  const double V = fit.inverter_voltage;
+  stats_.setInverterVoltage(std::isfinite(V) && V > 0 && fit.inverter_relative_std < 0.3 ? V : 0.0);
+}
+
 bool OnlineIdentifier::refreshSearchBox() {
   if (!box_.valid || config_.search.fixed_bounds || !stats_.hasBlocks()) return false;
-  const FitCheck fit = checkFit(stats_, config_.assessment, box_.centre, false);
+  const FitCheck fit = checkFit(stats_, config_.assessment, box_.centre, false, config_.inverter.estimate_voltage,
+                                stats_.inverterVoltage());
   if (!fit.available) return false;
   noise_std_ = std::max(fit.noise_std_d, fit.noise_std_q);
+  useInverterVoltage(fit);
   const double inner = std::sqrt(config_.search.span_factor);
   ParameterVector centre = box_.centre;
   bool moved = false;
@@ -213,8 +224,11 @@ Estimate OnlineIdentifier::estimate() const {
   const std::uint64_t stale_after = static_cast<std::uint64_t>(std::max(1, stats_.blockSamples()));
   const bool retest = fit_blocks_ == ~0ull || stats_.blocks() < fit_blocks_ ||
                       stats_.blocks() - fit_blocks_ >= stale_after || !fit_cache_.available;
-  FitCheck fit = checkFit(stats_, config_.assessment, fit_cache_.available ? fit_cache_.optimum : start, retest);
-  if (!fit.available && fit_cache_.available) fit = checkFit(stats_, config_.assessment, start, retest);
+  const bool inverter = config_.inverter.estimate_voltage;
+  const double v_start = fit_cache_.inverter_modelled && std::isfinite(fit_cache_.inverter_voltage) ? fit_cache_.inverter_voltage : 0.0;
+  FitCheck fit = checkFit(stats_, config_.assessment, fit_cache_.available ? fit_cache_.optimum : start, retest, inverter,
+                          v_start);
+  if (!fit.available && fit_cache_.available) fit = checkFit(stats_, config_.assessment, start, retest, inverter);
   if (retest) {
     fit_blocks_ = stats_.blocks();
     fit_cache_ = fit;
@@ -240,6 +254,11 @@ Estimate OnlineIdentifier::estimate() const {
   }
   e.fit = fit;
   const Assessment a = assess(e.parameters, e.fit, atBound(), config_.assessment);
+  const InverterAssessment inv = assessInverter(e.fit, config_.assessment, config_.inverter.max_relative_uncertainty);
+  e.inverter_voltage = e.fit.inverter_modelled ? e.fit.inverter_voltage : std::numeric_limits<double>::quiet_NaN();
+  e.inverter_status = inv.status;
+  e.inverter_reason = inv.reason;
+  e.inverter_relative_uncertainty = inv.relative_uncertainty;
   e.status = a.status;
   e.reason = a.reason;
   e.relative_uncertainty = a.relative_uncertainty;

@@ -8,7 +8,9 @@ RlsIdentifier::RlsIdentifier(const IdentifierConfig& config) : OnlineIdentifier(
 
 void RlsIdentifier::restart() {
   for (int p = 0; p < kParameterCount; ++p) theta_(p) = box_.centre[p];
-  P_ = Eigen::Matrix4d::Identity() * config_.rls.initial_covariance;
+  theta_(4) = 0.0;
+  P_ = Mat5::Identity() * config_.rls.initial_covariance;
+  if (!config_.inverter.estimate_voltage) P_(4, 4) = 0.0;  // V stays 0
   have_last_ = false;
 }
 
@@ -20,13 +22,13 @@ void RlsIdentifier::update(const Sample& s, bool new_block, bool) {
   const double lambda = std::exp(-dt / config_.rls.time_constant);
   const BlockD& d = stats_.lastBlockD();  // {Di_d, I_d, W_d, U_d}
   const BlockQ& q = stats_.lastBlockQ();  // {Di_q, I_q, W_q, U_q, Om}
-  const Eigen::Vector4d phi_d(d(1), d(0), -d(2), 0.0);
-  const Eigen::Vector4d phi_q(q(1), q(2), q(0), q(4));
+  const Vec5 phi_d = (Vec5() << d(kIntegralId), d(kDeltaId), -d(kIntegralOmegaIq), 0.0, d(kIntegralInverterD)).finished();
+  const Vec5 phi_q = (Vec5() << q(kIntegralIq), q(kIntegralOmegaId), q(kDeltaIq), q(kIntegralOmega), q(kIntegralInverterQ)).finished();
   P_ /= lambda;
-  for (const auto& [phi, y] : {std::make_pair(phi_d, d(3)), std::make_pair(phi_q, q(3))}) {
-    const Eigen::Vector4d Pphi = P_ * phi;
+  for (const auto& [phi, y] : {std::make_pair(phi_d, d(kIntegralUd)), std::make_pair(phi_q, q(kIntegralUq))}) {
+    const Vec5 Pphi = P_ * phi;
     const double denom = 1.0 + phi.dot(Pphi);
-    const Eigen::Vector4d gain = Pphi / denom;
+    const Vec5 gain = Pphi / denom;
     theta_ += gain * (y - phi.dot(theta_));
     P_ -= gain * Pphi.transpose();
   }
@@ -36,7 +38,10 @@ void RlsIdentifier::update(const Sample& s, bool new_block, bool) {
   const double largest = P_.diagonal().maxCoeff();
   if (!(largest <= config_.rls.initial_covariance)) {
     if (std::isfinite(largest)) P_ *= config_.rls.initial_covariance / largest;
-    else P_ = Eigen::Matrix4d::Identity() * config_.rls.initial_covariance;
+    else {
+      P_ = Mat5::Identity() * config_.rls.initial_covariance;
+      if (!config_.inverter.estimate_voltage) P_(4, 4) = 0.0;
+    }
   }
   if (!theta_.allFinite()) restart();
 }

@@ -43,25 +43,77 @@ double DriveSimulator::measure(double true_current) {
   return v;
 }
 
+namespace {
+struct Vec2 {
+  double x, y;
+};
+inline Vec2 rotate(Vec2 v, double angle) {  // e^{j angle} v
+  const double c = std::cos(angle), s = std::sin(angle);
+  return {c * v.x - s * v.y, s * v.x + c * v.y};
+}
+// Amplitude-invariant Clarke transform of three phase quantities, and its inverse.
+inline Vec2 clarke(double a, double b, double c) { return {(2.0 * a - b - c) / 3.0, (b - c) / std::sqrt(3.0)}; }
+inline std::array<double, 3> inverseClarke(Vec2 v) {
+  const double h = std::sqrt(3.0) / 2.0;
+  return {v.x, -0.5 * v.x + h * v.y, -0.5 * v.x - h * v.y};
+}
+}  // namespace
+
+double DriveSimulator::busVoltage(double t) const {
+  const InverterSettings& inv = scenario_.inverter;
+  return scenario_.drive.dc_bus_voltage * (1.0 + inv.dc_ripple * std::sin(2.0 * M_PI * inv.dc_ripple_frequency * t));
+}
+
 SimulatedSample DriveSimulator::step() {
   const Scenario& s = scenario_;
   const double Ts = s.drive.sample_period;
   const double t = static_cast<double>(k_) * Ts;
   const MotorParameters nominal = s.motor;
   const MotorParameters plant = trueMotorAt(t);
+  const int p = nominal.pole_pairs;
 
   SimulatedSample out;
   out.truth = plant.electrical();
   out.i_d_true = x_.i_d;
   out.i_q_true = x_.i_q;
-  const double i_d = measure(x_.i_d);
-  const double i_q = measure(x_.i_q);
-  const double omega_e = nominal.pole_pairs * x_.omega_m;
+
+  // Angle and speed as the controller sees them: exact, or an incremental encoder (4 counts per
+  // line) with the speed from filtered position differences.
+  double theta_e_measured = x_.theta_e, omega_m_measured = x_.omega_m;
+  if (s.sensors.encoder_lines > 0) {
+    const double counts_per_rad = 4.0 * s.sensors.encoder_lines / (2.0 * M_PI);
+    const double theta_m = std::floor(x_.theta_e / p * counts_per_rad) / counts_per_rad + 0.5 / counts_per_rad;
+    if (k_ == 0) encoder_previous_ = theta_m;
+    const double alpha = 1.0 - std::exp(-2.0 * M_PI * s.sensors.speed_filter_hz * Ts);
+    speed_estimate_ += alpha * ((theta_m - encoder_previous_) / Ts - speed_estimate_);
+    encoder_previous_ = theta_m;
+    theta_e_measured = p * theta_m;
+    omega_m_measured = speed_estimate_;
+  }
+  const double omega_e = p * omega_m_measured;
+
+  // Currents: errors on d and q, or on the phase currents (gain, offset, noise, ADC), then the
+  // Park transform with the measured angle, as the drive computes them.
+  double i_d = 0, i_q = 0;
+  if (s.sensors.phase_currents) {
+    const std::array<double, 3> abc = inverseClarke(rotate({x_.i_d, x_.i_q}, x_.theta_e));
+    std::array<double, 3> m{};
+    for (int k = 0; k < 3; ++k)
+      m[static_cast<std::size_t>(k)] = measure(s.sensors.phase_gain[static_cast<std::size_t>(k)] * abc[static_cast<std::size_t>(k)] +
+                                               s.sensors.phase_offset[static_cast<std::size_t>(k)]);
+    const Vec2 dq = rotate(clarke(m[0], m[1], m[2]), -theta_e_measured);
+    i_d = dq.x;
+    i_q = dq.y;
+  } else {
+    const Vec2 dq = rotate(rotate({x_.i_d, x_.i_q}, x_.theta_e), -theta_e_measured);  // exact angle: identity
+    i_d = measure(dq.x);
+    i_q = measure(dq.y);
+  }
 
   // Speed loop -> i_q reference, limited so that |i_ref| <= max_current (conditional integration).
   const double i_d_ref = s.d_current_injection(t);
   const double i_q_limit = std::sqrt(std::max(0.0, s.drive.max_current * s.drive.max_current - i_d_ref * i_d_ref));
-  const double speed_error = s.speed_reference_rpm(t) * 2.0 * M_PI / 60.0 - x_.omega_m;
+  const double speed_error = s.speed_reference_rpm(t) * 2.0 * M_PI / 60.0 - omega_m_measured;
   double i_q_ref = kp_speed_ * speed_error + speed_integral_ + ki_speed_ * Ts * speed_error;
   if (std::abs(i_q_ref) < i_q_limit) {
     speed_integral_ += ki_speed_ * Ts * speed_error;
@@ -75,7 +127,8 @@ SimulatedSample DriveSimulator::step() {
   const double ff_q = omega_e * (nominal.L_d * i_d + nominal.psi_f);
   double u_d = kp_d_ * e_d + d_integral_ + ki_current_ * Ts * e_d + ff_d;
   double u_q = kp_q_ * e_q + q_integral_ + ki_current_ * Ts * e_q + ff_q;
-  const double limit = voltageLimit();
+  const double v_dc = busVoltage(t);
+  const double limit = v_dc / std::sqrt(3.0);
   const double magnitude = std::hypot(u_d, u_q);
   if (magnitude > limit) {
     u_d *= limit / magnitude;
@@ -86,16 +139,71 @@ SimulatedSample DriveSimulator::step() {
     q_integral_ += ki_current_ * Ts * e_q;
   }
 
+  // The log holds what a drive logs: the reference voltage, measured currents, speed and angle.
   out.sample = Sample{t, u_d, u_q, i_d, i_q, omega_e};
-  out.sample.theta_e = std::remainder(x_.theta_e, 2.0 * M_PI);  // exact angle, in (-pi, pi]
+  out.sample.theta_e = std::remainder(theta_e_measured, 2.0 * M_PI);
   out.i_d_reference = i_d_ref;
   out.i_q_reference = i_q_ref;
   out.load_torque = s.load_torque(t);
 
-  // Plant over [t, t + Ts] with the voltages held (zero-order hold).
+  // Actuation. The reference computed now acts from now on, or one period later; it is turned into
+  // the stator frame with the angle at the start of the period it acts in (measured angle plus
+  // the speed times the delay), and held there (stationary hold) or in the rotor frame.
+  const InverterSettings& inv = s.inverter;
+  Vec2 reference{u_d, u_q};
+  double conversion_angle = theta_e_measured;
+  if (inv.computation_delay > 0) {
+    const Vec2 computed = reference;
+    const double computed_angle = theta_e_measured + omega_e * Ts;  // where the rotor will be
+    reference = k_ == 0 ? Vec2{0.0, 0.0} : Vec2{pending_u_d_, pending_u_q_};  // nothing before the first
+    conversion_angle = k_ == 0 ? theta_e_measured : pending_angle_;
+    pending_u_d_ = computed.x;
+    pending_u_q_ = computed.y;
+    pending_angle_ = computed_angle;
+  }
+  const Vec2 stator = rotate(reference, conversion_angle);
+  const double v_err = inv.errorVoltage(v_dc, Ts);
+  const double i0 = inv.zero_crossing_current;
+  const double theta_start = x_.theta_e;
+  // Applied d-q voltage for a plant state inside the period.
+  const auto applied = [&](const PlantState& x) -> Vec2 {
+    Vec2 u = inv.stationary_hold ? rotate(stator, -x.theta_e) : rotate(stator, -theta_start);
+    if (v_err > 0) {  // dead time and device drops: each pole voltage loses v_err against its current
+      const std::array<double, 3> abc = inverseClarke(rotate({x.i_d, x.i_q}, x.theta_e));
+      const Vec2 e = rotate(clarke(std::tanh(abc[0] / i0), std::tanh(abc[1] / i0), std::tanh(abc[2] / i0)), -x.theta_e);
+      u.x -= v_err * e.x;
+      u.y -= v_err * e.y;
+    }
+    return u;
+  };
+
+  // Plant over [t, t + Ts]: classical RK4 with the applied voltage evaluated at every stage.
   const int n = s.drive.integration_substeps;
   const double h = Ts / n;
-  for (int j = 0; j < n; ++j) x_ = rk4Step(plant, x_, u_d, u_q, out.load_torque, h);
+  const auto derivative = [&](const PlantState& x) {
+    const Vec2 u = applied(x);
+    return plantDerivative(plant, x, u.x, u.y, out.load_torque);
+  };
+  const auto add = [](const PlantState& a, const PlantDerivative& d, double k) {
+    return PlantState{a.i_d + k * d.di_d, a.i_q + k * d.di_q, a.omega_m + k * d.domega_m, a.theta_e + k * d.dtheta_e};
+  };
+  double applied_d = 0.0, applied_q = 0.0;
+  for (int j = 0; j < n; ++j) {
+    const PlantDerivative k1 = derivative(x_);
+    const PlantDerivative k2 = derivative(add(x_, k1, h / 2));
+    const PlantDerivative k3 = derivative(add(x_, k2, h / 2));
+    const PlantDerivative k4 = derivative(add(x_, k3, h));
+    const Vec2 u0 = applied(x_);
+    applied_d += u0.x / n;
+    applied_q += u0.y / n;
+    x_.i_d += h / 6 * (k1.di_d + 2 * k2.di_d + 2 * k3.di_d + k4.di_d);
+    x_.i_q += h / 6 * (k1.di_q + 2 * k2.di_q + 2 * k3.di_q + k4.di_q);
+    x_.omega_m += h / 6 * (k1.domega_m + 2 * k2.domega_m + 2 * k3.domega_m + k4.domega_m);
+    x_.theta_e += h / 6 * (k1.dtheta_e + 2 * k2.dtheta_e + 2 * k3.dtheta_e + k4.dtheta_e);
+  }
+  out.u_d_applied = applied_d;
+  out.u_q_applied = applied_q;
+  out.inverter_error_voltage = v_err;
   ++k_;
   return out;
 }

@@ -39,6 +39,34 @@ Scenario loadScenario(const std::string& path) {
   s.sensors.adc_bits = static_cast<int>(bits);
   s.sensors.adc_range = y.positive("sensors.adc_range", 50.0);
 
+  InverterSettings& inv = s.inverter;
+  inv.dead_time = y.number("inverter.dead_time", 0.0);
+  if (inv.dead_time < 0 || inv.dead_time > 0.2 * s.drive.sample_period)
+    y.fail("inverter.dead_time", "must be in [0, 0.2 x drive.sample_period] [s]");
+  inv.switching_frequency = y.number("inverter.switching_frequency", 0.0);
+  if (inv.switching_frequency < 0) y.fail("inverter.switching_frequency", "must be >= 0 (0 = 1 / sample_period)");
+  inv.device_drop = y.number("inverter.device_drop", 0.0);
+  if (inv.device_drop < 0) y.fail("inverter.device_drop", "must be >= 0 [V]");
+  inv.zero_crossing_current = y.positive("inverter.zero_crossing_current", inv.zero_crossing_current);
+  const std::string hold = y.text("inverter.voltage_hold", "dq");
+  if (hold != "dq" && hold != "stationary") y.fail("inverter.voltage_hold", "expected dq or stationary, got '" + hold + "'");
+  inv.stationary_hold = hold == "stationary";
+  inv.computation_delay = static_cast<int>(y.integer("inverter.computation_delay", 0, 0, 1));
+  inv.dc_ripple = y.number("inverter.dc_ripple", 0.0);
+  if (inv.dc_ripple < 0 || inv.dc_ripple >= 0.5) y.fail("inverter.dc_ripple", "must be in [0, 0.5)");
+  inv.dc_ripple_frequency = y.positive("inverter.dc_ripple_frequency", inv.dc_ripple_frequency);
+  const std::string frame = y.text("sensors.frame", "dq");
+  if (frame != "dq" && frame != "phase") y.fail("sensors.frame", "expected dq or phase, got '" + frame + "'");
+  s.sensors.phase_currents = frame == "phase";
+  for (const char* key : {"sensors.phase_offset", "sensors.phase_gain"}) {
+    if (!y.has(key)) continue;
+    const std::vector<double> v = y.numbers(key);
+    if (v.size() != 3) y.fail(key, "expected three values [a, b, c]");
+    auto& target = std::string(key) == "sensors.phase_offset" ? s.sensors.phase_offset : s.sensors.phase_gain;
+    for (int i = 0; i < 3; ++i) target[static_cast<std::size_t>(i)] = v[static_cast<std::size_t>(i)];
+  }
+  s.sensors.encoder_lines = static_cast<int>(y.integer("sensors.encoder_lines", 0, 0, 1 << 24));
+  s.sensors.speed_filter_hz = y.positive("sensors.speed_filter_hz", s.sensors.speed_filter_hz);
   s.duration = y.positive("run.duration");
   if (s.duration / s.drive.sample_period > 1e9) y.fail("run.duration", "more than 1e9 samples");
   const long seed = y.integer("run.seed", 1, 0, 1L << 53);
