@@ -419,3 +419,91 @@ TEST(OnlineIdentifier, EstimateIsSafeBeforeTheMethodStarts) {
     EXPECT_TRUE(std::isfinite(e.parameters[kLq])) << method;
   }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Real drives (the simulator's inverter and sensors; config/identifiers/real_drive.yaml declares
+// the delay, the stationary hold and the inverter model).
+
+namespace {
+IdentifierConfig realDriveConfig() {
+  return loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/real_drive.yaml"));
+}
+Scenario idealSensors(Scenario s) {
+  s.sensors.phase_offset = {0, 0, 0};
+  s.sensors.phase_gain = {1, 1, 1};
+  s.sensors.encoder_lines = 0;
+  s.inverter.dc_ripple = 0.0;
+  return s;
+}
+}  // namespace
+
+// Dead time inflates R_s by (4/pi) V_err / |i| in a model without it: the nested inverter test must
+// see it, so R_s is never reported identified; with the inverter voltage estimated, R_s and V are
+// right (V within 5 % of its true equivalent value).
+TEST(RealDriveIdentification, InverterErrorIsSeenWithoutTheModelAndEstimatedWithIt) {
+  Scenario s = idealSensors(test_helpers::scenario("wc1_realistic.yaml"));
+  s.duration = 1.0;
+  const auto data = test_helpers::run(s);
+  const ParameterVector truth = data.back().truth;
+  IdentifierConfig without = realDriveConfig();
+  without.inverter.estimate_voltage = false;
+  for (const char* method : {"fbdapso", "rls"}) {
+    const Estimate e = identify(samplesOf(data), method, without);
+    EXPECT_FALSE(e.identifiable[kRs]) << method << " " << e.reason[kRs];
+    EXPECT_NE(e.fit.likely_cause.find("inverter voltage error"), std::string::npos) << e.fit.likely_cause;
+    const Estimate m = identify(samplesOf(data), method, realDriveConfig());
+    // R_s may stay unidentified: the unknown shape of the zero crossing leaves about +-1 % (reason).
+    for (int p = 0; p < kParameterCount; ++p) {
+      if (!m.identifiable[p]) continue;
+      EXPECT_LE(std::abs(errorPercent(m.parameters[p], truth[p])), 1.25 * 100 * m.relative_uncertainty[p])
+          << method << " " << parameterNames()[p] << " " << m.reason[p];
+    }
+    EXPECT_TRUE(m.fit.consistent) << method;
+    EXPECT_EQ(m.inverter_status, ParameterStatus::Identified) << m.inverter_reason;
+    EXPECT_NEAR(m.inverter_voltage, data.back().inverter_error_voltage, 0.05 * data.back().inverter_error_voltage);
+  }
+}
+
+// A voltage held in the stator frame turns by omega_e T_s per period: undeclared on a fast
+// low-inductance motor it is a poor fit; declared, every identified value is right.
+TEST(RealDriveIdentification, StationaryHoldUndeclaredIsAPoorFitDeclaredIsRight) {
+  Scenario s = test_helpers::scenario("robot_joint.yaml");
+  s.speed_reference_rpm = Profile::ramp(0.0, 1000.0, 0.0, 0.05);  // omega_e T_s = 0.073
+  s.inverter.stationary_hold = true;
+  s.duration = 0.4;
+  const auto data = test_helpers::run(s);
+  const Estimate undeclared = identify(samplesOf(data), "rls");
+  EXPECT_FALSE(undeclared.fit.consistent);
+  for (int p = 0; p < kParameterCount; ++p) EXPECT_FALSE(undeclared.identifiable[p]) << undeclared.reason[p];
+  IdentifierConfig c;
+  c.window.stationary_hold = true;
+  for (const char* method : {"fbdapso", "rls"}) {
+    const Estimate e = identify(samplesOf(data), method, c);
+    EXPECT_TRUE(e.identifiable[kLq]) << method << " " << e.reason[kLq];
+    for (int p = 0; p < kParameterCount; ++p)
+      if (e.identifiable[p]) {
+        const double err = std::abs(errorPercent(e.parameters[p], data.back().truth[p]));
+        EXPECT_LE(err, 1.25 * 100 * e.relative_uncertainty[p]) << method << " " << parameterNames()[p];
+      }
+  }
+}
+
+// On the full realistic drives (sensor offsets, gain mismatch, encoder, smooth zero crossings)
+// nothing is reported identified more than 2 % from the truth, by any method, with or without the
+// real-drive declarations.
+TEST(RealDriveIdentification, NoConfidentlyWrongNumberOnTheRealisticScenarios) {
+  for (const char* file : {"wc1_realistic.yaml", "robot_joint_realistic.yaml"}) {
+    Scenario s = test_helpers::scenario(file);
+    s.duration = 0.8;
+    const auto data = test_helpers::run(s);
+    for (bool declared : {false, true})
+      for (const char* method : {"fbdapso", "sapso", "pso", "ekf", "rls"}) {
+        const Estimate e = identify(samplesOf(data), method, declared ? realDriveConfig() : IdentifierConfig{});
+        for (int p = 0; p < kParameterCount; ++p) {
+          if (!e.identifiable[p]) continue;
+          EXPECT_LT(std::abs(errorPercent(e.parameters[p], data.back().truth[p])), 2.0)
+              << file << " " << method << (declared ? " declared " : " ") << parameterNames()[p];
+        }
+      }
+  }
+}

@@ -50,6 +50,9 @@ struct FitCheck {
   double speed_scale_short = NAN;  ///< speed-term / current-step-term inductance ratio, fitness window [-]
   double speed_scale_long = NAN;   ///< the same over the long check window [-] (1 when the units are right)
   std::string likely_cause;        ///< one line when the fit is poor and a cause fits the data
+  double sampling_floor = 0.0;     ///< (omega_e T_s)^2: relative error of sampled integrals at speed [-]
+  ParameterVector model_sensitivity{};  ///< change with twice the inverter zero-crossing width [-]
+  double inverter_model_sensitivity = 0.0;  ///< the same for V [-]
   bool inverter_modelled = false;  ///< the fit estimated an inverter voltage error V with the four
   double inverter_voltage = 0.0;   ///< V [V] (pole-voltage error amplitude, V_dc t_dead f_sw + drop)
   double inverter_relative_std = std::numeric_limits<double>::infinity();  ///< of V [-]

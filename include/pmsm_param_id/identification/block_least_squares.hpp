@@ -35,6 +35,7 @@ struct LinearBlockModel {
   static const LinearBlockModel& speedScale();   ///< + {L_q in speed terms, L_d in speed terms}; psi_f in speed terms
   static const LinearBlockModel& delay();        ///< + {a}: voltage delay [samples]
   static const LinearBlockModel& inverter();     ///< + {V}: inverter voltage along the current [V]
+  static const LinearBlockModel& inverterWide(); ///< the same with twice the zero-crossing width
 };
 
 struct BlockFit {

@@ -50,6 +50,7 @@ enum BlockEntryD : int {
   kIntegralUd,           ///< int u_d dt [V s] (the voltage acting: delay and hold applied)
   kIntegralInverterD,    ///< int s_d dt [s]: shape of the inverter voltage error (see below)
   kIntegralUdStep,       ///< int (u_d,k - u_d,k-1) dt [V s] (delay diagnosis)
+  kIntegralInverterWideD,  ///< int s_d dt with twice the zero-crossing width (model sensitivity) [s]
   kBlockSizeD
 };
 /// Entries of the q-axis block vector.
@@ -61,6 +62,7 @@ enum BlockEntryQ : int {
   kIntegralOmega,        ///< int omega_e dt [rad]
   kIntegralInverterQ,    ///< int s_q dt [s]
   kIntegralUqStep,       ///< [V s]
+  kIntegralInverterWideQ,  ///< [s]
   kBlockSizeQ
 };
 using BlockD = Eigen::Matrix<double, kBlockSizeD, 1>;
@@ -159,12 +161,12 @@ class BlockStatistics {
     double applied_d, applied_q;            // voltage acting on [t, t_next)
     double applied_prev_d, applied_prev_q;  // voltage that acted on the period before
     double u_d, u_q;                        // the sample's own (commanded) voltage
-    double I_d, I_q, OmIq, OmId, U_d, U_q, Om, Ustep_d, Ustep_q, Inv_d, Inv_q;
+    double I_d, I_q, OmIq, OmId, U_d, U_q, Om, Ustep_d, Ustep_q, Inv_d, Inv_q, Wide_d, Wide_q;
     double shape_d, shape_q;                // inverter error shape s at the sample
     double theta_e;                         // electrical angle (NaN when not logged)
   };
   void inverterShapeIntegral(const Cumulative& previous, const Cumulative& current, const Sample& s, double dt,
-                             double& int_d, double& int_q) const;
+                             double width, double& int_d, double& int_q) const;
   void rescale();
 
   WindowSettings settings_;

@@ -91,6 +91,19 @@ const LinearBlockModel& LinearBlockModel::inverter() {
   return model;
 }
 
+const LinearBlockModel& LinearBlockModel::inverterWide() {
+  static const LinearBlockModel model = [] {
+    LinearBlockModel m = inverter();
+    m.name = "inverter_wide";
+    m.G_d(kIntegralInverterD, 4) = 0.0;
+    m.G_q(kIntegralInverterQ, 4) = 0.0;
+    m.G_d(kIntegralInverterWideD, 4) = 1.0;
+    m.G_q(kIntegralInverterWideQ, 4) = 1.0;
+    return m;
+  }();
+  return model;
+}
+
 void BlockLeastSquares::residuals(const WindowSums& stats, const LinearBlockModel& model,
                                   const Eigen::VectorXd& beta, double& ms_d, double& ms_q, double& diff_ms_d,
                                   double& diff_ms_q) {

@@ -77,7 +77,7 @@ inline std::array<double, 3> phaseCurrents(double i_d, double i_q, double theta)
 }  // namespace
 
 void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulative& c, const Sample& s, double dt,
-                                            double& int_d, double& int_q) const {
+                                            double width, double& int_d, double& int_q) const {
   if (!(std::isfinite(p.theta_e) && std::isfinite(s.theta_e))) {  // no angle: trapezoid of (4/pi) i/|i|
     int_d = 0.5 * dt * (p.shape_d + c.shape_d);
     int_q = 0.5 * dt * (p.shape_q + c.shape_q);
@@ -90,7 +90,6 @@ void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulativ
   const std::array<double, 3> b = phaseCurrents(c.i_d, c.i_q, s.theta_e);
   const auto sign = [](double x) { return x > 0 ? 1.0 : (x < 0 ? -1.0 : 0.0); };
   std::array<double, 3> mean{};
-  const double width = settings_.inverter_zero_crossing_current;
   for (int k = 0; k < 3; ++k) {
     const double ia = a[static_cast<std::size_t>(k)], ib = b[static_cast<std::size_t>(k)];
     if (width > 0) {  // smooth: tanh(i / width), Simpson's rule on the linearly interpolated current
@@ -165,9 +164,16 @@ bool BlockStatistics::add(const Sample& s) {
     c.Ustep_d = p.Ustep_d + dt * (p.applied_d - p.applied_prev_d);
     c.Ustep_q = p.Ustep_q + dt * (p.applied_q - p.applied_prev_q);
     double inv_d = 0.0, inv_q = 0.0;
-    inverterShapeIntegral(p, c, s, dt, inv_d, inv_q);
+    const double width = settings_.inverter_zero_crossing_current;
+    inverterShapeIntegral(p, c, s, dt, width, inv_d, inv_q);
     c.Inv_d = p.Inv_d + inv_d;
     c.Inv_q = p.Inv_q + inv_q;
+    // The same with twice the width (a sharp sign change: a width of 2 % of the current): how much
+    // the estimates depend on the zero-crossing shape, which nobody knows exactly.
+    const double wide = width > 0 ? 2.0 * width : 0.02 * std::sqrt(c.i_d * c.i_d + c.i_q * c.i_q) + 1e-12;
+    inverterShapeIntegral(p, c, s, dt, wide, inv_d, inv_q);
+    c.Wide_d = p.Wide_d + inv_d;
+    c.Wide_q = p.Wide_q + inv_q;
   } else {
     // First sample of a stretch: with a declared delay the voltage acting now is unknown; the
     // commanded one stands in for the first period only (one period in a block of M).
@@ -185,9 +191,10 @@ bool BlockStatistics::add(const Sample& s) {
   const Cumulative& a = ring_[head_];  // M periods back
   BlockD zd;
   BlockQ zq;
-  zd << c.i_d - a.i_d, c.I_d - a.I_d, c.OmIq - a.OmIq, c.U_d - a.U_d, c.Inv_d - a.Inv_d, c.Ustep_d - a.Ustep_d;
+  zd << c.i_d - a.i_d, c.I_d - a.I_d, c.OmIq - a.OmIq, c.U_d - a.U_d, c.Inv_d - a.Inv_d, c.Ustep_d - a.Ustep_d,
+      c.Wide_d - a.Wide_d;
   zq << c.i_q - a.i_q, c.I_q - a.I_q, c.OmId - a.OmId, c.U_q - a.U_q, c.Om - a.Om, c.Inv_q - a.Inv_q,
-      c.Ustep_q - a.Ustep_q;
+      c.Ustep_q - a.Ustep_q, c.Wide_q - a.Wide_q;
   // Forgetting: every stored sum is implicitly multiplied by lambda; new terms enter with scale_.
   scale_ /= lambda_;
   rankOneUpper(S_d_, zd, scale_);
@@ -229,6 +236,7 @@ bool BlockStatistics::add(const Sample& s) {
       e.I_d -= base.I_d; e.I_q -= base.I_q; e.OmIq -= base.OmIq; e.OmId -= base.OmId;
       e.U_d -= base.U_d; e.U_q -= base.U_q; e.Om -= base.Om; e.Ustep_d -= base.Ustep_d;
       e.Ustep_q -= base.Ustep_q; e.Inv_d -= base.Inv_d; e.Inv_q -= base.Inv_q;
+      e.Wide_d -= base.Wide_d; e.Wide_q -= base.Wide_q;
     }
   }
   return true;
