@@ -507,3 +507,18 @@ TEST(RealDriveIdentification, NoConfidentlyWrongNumberOnTheRealisticScenarios) {
       }
   }
 }
+
+// wls is the exact minimiser of the block fitness: no method ends below it on the same window,
+// and the swarms end close to it.
+TEST(Wls, NoMethodEndsBelowTheExactOptimum) {
+  const auto data = drive("wc1_drive.yaml", 4);
+  const Estimate reference = identify(samplesOf(data), "wls");
+  for (int p = 0; p < kParameterCount; ++p) EXPECT_TRUE(reference.identifiable[p]) << reference.reason[p];
+  for (const char* method : {"fbdapso", "sapso", "pso", "rls", "ekf"}) {
+    const Estimate e = identify(samplesOf(data), method);
+    EXPECT_GE(e.fitness, reference.fitness * (1 - 1e-9)) << method;
+    if (std::string(method) != "ekf")
+      for (int p = 0; p < kParameterCount; ++p)
+        EXPECT_LT(std::abs(errorPercent(e.parameters[p], reference.parameters[p])), 0.5) << method << " " << parameterNames()[p];
+  }
+}

@@ -151,7 +151,7 @@ TEST(IdentifierConfig, BadValuesNameTheKey) {
   };
   IdentifierConfig c;
   c.method = "gradient";
-  EXPECT_EQ(message(c), "cfg.yaml: key 'method': unknown method 'gradient' (expected fbdapso, sapso, pso, ekf, rls)");
+  EXPECT_EQ(message(c), "cfg.yaml: key 'method': unknown method 'gradient' (expected fbdapso, sapso, pso, ekf, rls, wls)");
   c = {};
   c.search.fixed_bounds = true;
   c.search.lower = {1, 1e-3, 2e-3, 0.1};

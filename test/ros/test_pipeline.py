@@ -225,7 +225,7 @@ class BadParameters(unittest.TestCase):
             self.assertEqual(r.returncode, 1, r.stdout)
             lines = [l for l in r.stdout.splitlines() if "FATAL" in l]
             self.assertEqual(len(lines), 1, r.stdout)
-            self.assertIn("parameter ~method: unknown method 'bogus' (expected fbdapso, sapso, pso, ekf, rls)", lines[0])
+            self.assertIn("parameter ~method: unknown method 'bogus' (expected fbdapso, sapso, pso, ekf, rls, wls)", lines[0])
             r = subprocess.run([os.path.join(DEVEL_LIB, "identifier"), "_method:=pso", "_publish_period:=-1"], env=e,
                                timeout=30, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
             self.assertEqual(r.returncode, 1, r.stdout)

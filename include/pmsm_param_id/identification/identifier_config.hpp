@@ -54,7 +54,7 @@ struct TimeSettings {
 };
 
 struct IdentifierConfig {
-  std::string method = "fbdapso";   ///< fbdapso | sapso | pso | ekf | rls
+  std::string method = "fbdapso";   ///< fbdapso | sapso | pso | ekf | rls | wls
   std::uint64_t seed = 1;
   SearchSettings search;
   WindowSettings window;
@@ -70,7 +70,7 @@ struct IdentifierConfig {
 };
 
 /// Known method names, in the order reports use.
-const std::string& methodList();  // "fbdapso, sapso, pso, ekf, rls"
+const std::string& methodList();  // "fbdapso, sapso, pso, ekf, rls, wls"
 bool isKnownMethod(const std::string& m);
 
 /// Reads a YAML file over the defaults above; every key is optional, an unknown key is an error.

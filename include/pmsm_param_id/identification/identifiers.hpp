@@ -86,4 +86,23 @@ class RlsIdentifier : public OnlineIdentifier {
   bool have_last_ = false;
 };
 
+/// The exact minimiser of the block fitness over the window (Gauss-Newton on the sufficient
+/// statistics, section 4 of doc/algorithm.md): the reference optimum every other method is
+/// measured against, and a method of its own. Refitted (warm-started, a few microseconds) whenever
+/// its parameters are asked for after new blocks, so it is exact for the window at every estimate.
+class WlsIdentifier : public OnlineIdentifier {
+ public:
+  explicit WlsIdentifier(const IdentifierConfig& config);
+  std::string method() const override { return "wls"; }
+
+ protected:
+  void update(const Sample&, bool, bool) override {}
+  ParameterVector current() const override;
+  void restart() override;
+
+ private:
+  mutable ParameterVector parameters_{};
+  mutable std::uint64_t blocks_at_fit_ = 0;
+};
+
 }  // namespace pmsm_param_id

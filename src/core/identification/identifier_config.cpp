@@ -5,11 +5,11 @@
 namespace pmsm_param_id {
 
 const std::string& methodList() {
-  static const std::string list = "fbdapso, sapso, pso, ekf, rls";
+  static const std::string list = "fbdapso, sapso, pso, ekf, rls, wls";
   return list;
 }
 bool isKnownMethod(const std::string& m) {
-  return m == "fbdapso" || m == "sapso" || m == "pso" || m == "ekf" || m == "rls";
+  return m == "fbdapso" || m == "sapso" || m == "pso" || m == "ekf" || m == "rls" || m == "wls";
 }
 
 void validate(const IdentifierConfig& c, const std::string& source) {

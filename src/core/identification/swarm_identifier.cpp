@@ -53,8 +53,27 @@ void SwarmIdentifier::update(const Sample&, bool, bool) {
 
 ParameterVector SwarmIdentifier::current() const { return swarm_ ? swarm_->best() : nanVector(); }
 
+WlsIdentifier::WlsIdentifier(const IdentifierConfig& config) : OnlineIdentifier(config) {}
+
+void WlsIdentifier::restart() {
+  parameters_ = box_.centre;
+  blocks_at_fit_ = 0;
+}
+
+ParameterVector WlsIdentifier::current() const {
+  if (stats_.blocks() == blocks_at_fit_) return parameters_;
+  blocks_at_fit_ = stats_.blocks();
+  const FitCheck fit = checkFit(stats_, config_.assessment, parameters_, false, config_.inverter.estimate_voltage,
+                                stats_.inverterVoltage());
+  if (!fit.available) return parameters_;
+  for (int p = 0; p < kParameterCount; ++p)
+    if (fit.determined[p] && plausible(p, fit.optimum[p])) parameters_[p] = fit.optimum[p];
+  return parameters_;
+}
+
 std::unique_ptr<OnlineIdentifier> makeIdentifier(const IdentifierConfig& config) {
   validate(config);
+  if (config.method == "wls") return std::make_unique<WlsIdentifier>(config);
   if (config.method == "ekf") return std::make_unique<EkfIdentifier>(config);
   if (config.method == "rls") return std::make_unique<RlsIdentifier>(config);
   return std::make_unique<SwarmIdentifier>(config);
