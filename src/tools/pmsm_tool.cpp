@@ -127,8 +127,10 @@ int runIdentify(const std::string& csv, const std::string& method, const std::st
   if (warnings > 20) std::fprintf(stderr, "%s: %zu more warnings not shown\n", csv.c_str(), warnings - 20);
   const Estimate e = id->estimate();
   if (!id->statistics().hasBlocks()) {
-    std::fprintf(stderr, "%s: only %llu usable samples: fewer than one fitness block (%.4g s) needs; no estimate\n",
-                 csv.c_str(), static_cast<unsigned long long>(e.counters.used), config.window.block_length);
+    const double block = id->statistics().configured() ? id->statistics().blockDuration() : config.window.block_length;
+    std::fprintf(stderr, "%s: only %llu usable samples: fewer than one fitness block (%s) needs; no estimate\n",
+                 csv.c_str(), static_cast<unsigned long long>(e.counters.used),
+                 block > 0 ? (std::to_string(block) + " s").c_str() : "at least 5 ms and 10 samples");
     return 2;
   }
   printEstimate(e);

@@ -69,6 +69,28 @@ TEST_P(AnyMotor, IdentifiedMeansWithinTheStatedUncertaintyWithNoConfig) {
 }
 INSTANTIATE_TEST_SUITE_P(Motors, AnyMotor, ::testing::Values("robot_joint.yaml", "wc1_drive.yaml", "industrial.yaml"));
 
+// The ends of the supported range, 20 uH / 0.02 ohm / 2 mWb at 40 kHz and 200 mH / 20 ohm / 2 Wb at
+// 1 kHz, with no configuration: nothing identified is more than 1 % off; the small motor is fully
+// identified, the slow one at least in L_q and psi_f (its 3 s at 1 kHz hold little information).
+TEST(AnyMotor, TheEndsOfTheSupportedRange) {
+  for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+    for (const char* file : {"small_fast.yaml", "large_slow.yaml"}) {
+      Scenario s = test_helpers::scenario(file);
+      s.seed = seed;
+      const auto data = test_helpers::run(s);
+      for (const char* method : {"fbdapso", "rls"}) {
+        const Estimate e = identify(samplesOf(data), method, {}, seed);
+        for (int p = 0; p < kParameterCount; ++p) {
+          const double err = std::abs(errorPercent(e.parameters[p], data.back().truth[p]));
+          if (e.identifiable[p]) EXPECT_LT(err, 1.0) << file << " " << method << " " << parameterNames()[p];
+          if (std::string(file) == "small_fast.yaml" || p == kLq || p == kPsiF)
+            EXPECT_TRUE(e.identifiable[p]) << file << " " << method << " " << e.reason[p];
+        }
+      }
+    }
+  }
+}
+
 TEST(Assessment, NoiseLevelIsEstimatedFromTheData) {
   const Estimate e = identify(samplesOf(drive("wc1_drive.yaml")), "rls");
   // 0.03 A of noise plus 12-bit quantisation (LSB 24 mA: 7 mA rms) = 0.031 A.

@@ -34,8 +34,8 @@
 namespace pmsm_param_id {
 
 struct WindowSettings {
-  double block_length = 0.005;             ///< length of one fitness block [s] (whole sampling periods)
-  double forgetting_time_constant = 0.05;  ///< exponential forgetting of the fitness window [s]
+  double block_length = 0.0;               ///< one fitness block [s]; 0 = max(5 ms, 10 sampling periods)
+  double forgetting_time_constant = 0.0;   ///< forgetting of the fitness window [s]; 0 = max(50 ms, 500 periods)
   double long_time_constant = 10.0;        ///< forgetting of the long check window [s] (unit checks)
   bool stationary_hold = false;            ///< the inverter holds the voltage in the stator frame
   double inverter_zero_crossing_current = 0.0;  ///< the inverter error passes zero as tanh(i / this) [A]; 0 = sign
@@ -140,6 +140,7 @@ class BlockStatistics {
   int blockSamples() const { return block_samples_; }       ///< M
   double nominalPeriod() const { return nominal_period_; }  ///< [s]
   double blockDuration() const { return block_samples_ * nominal_period_; }  ///< [s]
+  double forgettingTimeConstant() const { return forgetting_time_constant_; }  ///< in use [s]
   /// Forgotten means of z z^T (full symmetric): sum lambda^n z z^T / sum lambda^n.
   ProductD meanProductD() const;
   ProductQ meanProductQ() const;
@@ -172,6 +173,7 @@ class BlockStatistics {
   WindowSettings settings_;
   int block_samples_ = 0;
   double nominal_period_ = 0.0;
+  double forgetting_time_constant_ = 0.0;
   double lambda_ = 1.0;
   std::vector<Cumulative> ring_;  // capacity block_samples_ + 1
   std::size_t head_ = 0, count_ = 0;

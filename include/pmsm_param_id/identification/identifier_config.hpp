@@ -18,7 +18,7 @@ struct EkfSettings {
 };
 
 struct RlsSettings {
-  double time_constant = 0.05;      ///< forgetting time constant [s]
+  double time_constant = 0.0;       ///< forgetting time constant [s]; 0 = the fitness window's
   double initial_covariance = 1e6;  ///< P(0) = initial_covariance * I; also P's ceiling (standstill)
 };
 

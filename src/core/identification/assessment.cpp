@@ -320,9 +320,17 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
       continue;
     }
     if (!(out.relative_uncertainty[p] <= limit)) {
-      st = ParameterStatus::NotConverged;
-      why = format("%.3g %% from the data's optimum (allowed +-%.3g %% with the +-%.3g %% statistical bound)",
-                   100 * distance, 100 * limit, 100 * statistical);
+      // Which part of the stated uncertainty is too large: the method's distance from the data's
+      // optimum (not converged), or what the data allow (not excited).
+      const std::string parts =
+          format("stated +-%.3g %% = statistical +-%.3g %%", 100 * out.relative_uncertainty[p], 100 * statistical) +
+          format(" + distance to the data's optimum %.3g %%", 100 * distance) +
+          (fit.sampling_floor > 0 ? format(" + sampling +-%.3g %%", 100 * fit.sampling_floor) : std::string()) +
+          (fit.model_sensitivity[p] > 0 ? format(" + inverter shape +-%.3g %%", 100 * fit.model_sensitivity[p]) : std::string()) +
+          format(" (need %.3g %%)", 100 * limit);
+      const bool method_is_off = distance > std::max(statistical, a.min_relative_uncertainty);
+      st = method_is_off ? ParameterStatus::NotConverged : ParameterStatus::NotExcited;
+      why = parts;
       continue;
     }
     st = ParameterStatus::Identified;

@@ -34,8 +34,13 @@ void BlockStatistics::configure(double nominal_period) {
     throw std::invalid_argument("BlockStatistics: nominal period must be > 0");
   reset();
   nominal_period_ = nominal_period;
-  block_samples_ = std::max(1, static_cast<int>(std::lround(settings_.block_length / nominal_period)));
-  lambda_ = std::exp(-nominal_period / settings_.forgetting_time_constant);
+  // Automatic lengths follow the sampling rate where it is slow: a block of at least 10 periods and
+  // a window of at least 500 (at 1 kHz a 50 ms window would hold 50 samples).
+  const double block = settings_.block_length > 0 ? settings_.block_length : std::max(0.005, 10.0 * nominal_period);
+  forgetting_time_constant_ =
+      settings_.forgetting_time_constant > 0 ? settings_.forgetting_time_constant : std::max(0.05, 500.0 * nominal_period);
+  block_samples_ = std::max(1, static_cast<int>(std::lround(block / nominal_period)));
+  lambda_ = std::exp(-nominal_period / forgetting_time_constant_);
   long_lambda_ = std::exp(-block_samples_ * nominal_period / settings_.long_time_constant);
   ring_.resize(static_cast<std::size_t>(block_samples_) + 1);
 }

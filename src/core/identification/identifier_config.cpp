@@ -41,8 +41,10 @@ void validate(const IdentifierConfig& c, const std::string& source) {
   if (!(c.fbdapso_T1 > 0)) fail("fbdapso.T1", "must be > 0");
   if (!(c.fbdapso_T2 >= 0)) fail("fbdapso.T2", "must be >= 0");
   if (c.iterations_per_sample < 1) fail("swarm.iterations_per_sample", "must be >= 1");
-  if (!(c.window.block_length > 0)) fail("window.block_length", "must be > 0");
-  if (!(c.window.forgetting_time_constant > c.window.block_length))
+  if (!(c.window.block_length >= 0)) fail("window.block_length", "must be >= 0 (0 = automatic)");
+  if (!(c.window.forgetting_time_constant >= 0)) fail("window.forgetting_time_constant", "must be >= 0 (0 = automatic)");
+  if (c.window.forgetting_time_constant > 0 && c.window.block_length > 0 &&
+      !(c.window.forgetting_time_constant > c.window.block_length))
     fail("window.forgetting_time_constant", "must be longer than window.block_length");
   if (!(c.window.long_time_constant >= c.window.forgetting_time_constant))
     fail("window.long_time_constant", "must be at least window.forgetting_time_constant");
@@ -81,8 +83,8 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   c.search.fixed_bounds = bounds_given == kParameterCount;
   c.search.has_initial = initial_given == kParameterCount;
   c.search.span_factor = y.number("search.span_factor", c.search.span_factor);
-  c.window.block_length = y.positive("window.block_length", c.window.block_length);
-  c.window.forgetting_time_constant = y.positive("window.forgetting_time_constant", c.window.forgetting_time_constant);
+  c.window.block_length = y.number("window.block_length", c.window.block_length);
+  c.window.forgetting_time_constant = y.number("window.forgetting_time_constant", c.window.forgetting_time_constant);
   c.window.long_time_constant = y.positive("window.long_time_constant", c.window.long_time_constant);
   c.swarm.particles = static_cast<int>(y.integer("swarm.particles", c.swarm.particles, 2, 100000));
   c.swarm.c1 = y.number("swarm.c1", c.swarm.c1);
@@ -107,7 +109,8 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   if (c.ekf.process_current_sigma < 0) y.fail("ekf.process_current_sigma", "must be >= 0 (0 = automatic)");
   c.ekf.parameter_drift = y.positive("ekf.parameter_drift", c.ekf.parameter_drift);
   c.ekf.initial_relative_std = y.positive("ekf.initial_relative_std", c.ekf.initial_relative_std);
-  c.rls.time_constant = y.positive("rls.time_constant", c.rls.time_constant);
+  c.rls.time_constant = y.number("rls.time_constant", c.rls.time_constant);
+  if (c.rls.time_constant < 0) y.fail("rls.time_constant", "must be >= 0 (0 = the fitness window's)");
   c.rls.initial_covariance = y.positive("rls.initial_covariance", c.rls.initial_covariance);
   c.assessment.max_relative_uncertainty =
       y.positive("assessment.max_relative_uncertainty", c.assessment.max_relative_uncertainty);

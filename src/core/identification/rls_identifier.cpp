@@ -19,7 +19,8 @@ void RlsIdentifier::update(const Sample& s, bool new_block, bool) {
   last_t_ = s.t;
   have_last_ = true;
   if (!new_block) return;
-  const double lambda = std::exp(-dt / config_.rls.time_constant);
+  const double tau = config_.rls.time_constant > 0 ? config_.rls.time_constant : stats_.forgettingTimeConstant();
+  const double lambda = std::exp(-dt / tau);
   const BlockD& d = stats_.lastBlockD();  // {Di_d, I_d, W_d, U_d}
   const BlockQ& q = stats_.lastBlockQ();  // {Di_q, I_q, W_q, U_q, Om}
   const Vec5 phi_d = (Vec5() << d(kIntegralId), d(kDeltaId), -d(kIntegralOmegaIq), 0.0, d(kIntegralInverterD)).finished();
