@@ -1,5 +1,7 @@
 #include "pmsm_param_id/identification/block_statistics.hpp"
 
+#include "pmsm_param_id/model/frames.hpp"
+
 #include <array>
 #include <cmath>
 #include <stdexcept>
@@ -52,17 +54,17 @@ void BlockStatistics::breakContinuity() {
   blocks_in_stretch_ = 0;
 }
 
+namespace {
+inline double sign(double x) { return x > 0 ? 1.0 : (x < 0 ? -1.0 : 0.0); }
+}  // namespace
+
 void inverterShape(const Sample& s, double& shape_d, double& shape_q) {
   if (std::isfinite(s.theta_e)) {
     // Phase currents from the measured d-q currents and the angle, then the d-q image of their signs.
-    const double c = std::cos(s.theta_e), sn = std::sin(s.theta_e);
-    const double alpha = c * s.i_d - sn * s.i_q, beta = sn * s.i_d + c * s.i_q;
-    const double h = std::sqrt(3.0) / 2.0;
-    const auto sign = [](double x) { return x > 0 ? 1.0 : (x < 0 ? -1.0 : 0.0); };
-    const double a = sign(alpha), b = sign(-0.5 * alpha + h * beta), cc = sign(-0.5 * alpha - h * beta);
-    const double sa = (2.0 * a - b - cc) / 3.0, sb = (b - cc) / std::sqrt(3.0);
-    shape_d = c * sa + sn * sb;
-    shape_q = -sn * sa + c * sb;
+    const std::array<double, 3> i = phaseFromDq(s.i_d, s.i_q, s.theta_e);
+    const Vec2 shape = rotate(clarke(sign(i[0]), sign(i[1]), sign(i[2])), -s.theta_e);
+    shape_d = shape.x;
+    shape_q = shape.y;
     return;
   }
   const double magnitude2 = s.i_d * s.i_d + s.i_q * s.i_q;
@@ -70,16 +72,6 @@ void inverterShape(const Sample& s, double& shape_d, double& shape_q) {
   shape_d = s.i_d * k;
   shape_q = s.i_q * k;
 }
-
-namespace {
-// Phase currents a, b, c from d-q currents and the electrical angle.
-inline std::array<double, 3> phaseCurrents(double i_d, double i_q, double theta) {
-  const double c = std::cos(theta), sn = std::sin(theta);
-  const double alpha = c * i_d - sn * i_q, beta = sn * i_d + c * i_q;
-  const double h = std::sqrt(3.0) / 2.0;
-  return {alpha, -0.5 * alpha + h * beta, -0.5 * alpha - h * beta};
-}
-}  // namespace
 
 void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulative& c, const Sample& s, double dt,
                                             double width, double& int_d, double& int_q) const {
@@ -91,9 +83,8 @@ void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulativ
   // The sign of each phase current is piecewise constant; a sign change between the samples is
   // placed where the linearly interpolated current crosses zero (a trapezoid would smear every
   // crossing over a whole period: a misfit of about V T / 2 per crossing).
-  const std::array<double, 3> a = phaseCurrents(p.i_d, p.i_q, p.theta_e);
-  const std::array<double, 3> b = phaseCurrents(c.i_d, c.i_q, s.theta_e);
-  const auto sign = [](double x) { return x > 0 ? 1.0 : (x < 0 ? -1.0 : 0.0); };
+  const std::array<double, 3> a = phaseFromDq(p.i_d, p.i_q, p.theta_e);
+  const std::array<double, 3> b = phaseFromDq(c.i_d, c.i_q, s.theta_e);
   std::array<double, 3> mean{};
   for (int k = 0; k < 3; ++k) {
     const double ia = a[static_cast<std::size_t>(k)], ib = b[static_cast<std::size_t>(k)];
@@ -110,11 +101,10 @@ void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulativ
       mean[static_cast<std::size_t>(k)] = f * sa + (1.0 - f) * sb;
     }
   }
-  const double sa = (2.0 * mean[0] - mean[1] - mean[2]) / 3.0, sb = (mean[1] - mean[2]) / std::sqrt(3.0);
   const double mid = p.theta_e + 0.5 * dt * p.omega_e;  // rotor angle at mid-period
-  const double cm = std::cos(mid), sm = std::sin(mid);
-  int_d = dt * (cm * sa + sm * sb);
-  int_q = dt * (-sm * sa + cm * sb);
+  const Vec2 shape = rotate(clarke(mean[0], mean[1], mean[2]), -mid);
+  int_d = dt * shape.x;
+  int_q = dt * shape.y;
 }
 
 namespace {

@@ -1,5 +1,7 @@
 #include "pmsm_param_id/simulation/drive_simulator.hpp"
 
+#include "pmsm_param_id/model/frames.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -43,21 +45,6 @@ double DriveSimulator::measure(double true_current) {
   return v;
 }
 
-namespace {
-struct Vec2 {
-  double x, y;
-};
-inline Vec2 rotate(Vec2 v, double angle) {  // e^{j angle} v
-  const double c = std::cos(angle), s = std::sin(angle);
-  return {c * v.x - s * v.y, s * v.x + c * v.y};
-}
-// Amplitude-invariant Clarke transform of three phase quantities, and its inverse.
-inline Vec2 clarke(double a, double b, double c) { return {(2.0 * a - b - c) / 3.0, (b - c) / std::sqrt(3.0)}; }
-inline std::array<double, 3> inverseClarke(Vec2 v) {
-  const double h = std::sqrt(3.0) / 2.0;
-  return {v.x, -0.5 * v.x + h * v.y, -0.5 * v.x - h * v.y};
-}
-}  // namespace
 
 double DriveSimulator::busVoltage(double t) const {
   const InverterSettings& inv = scenario_.inverter;
