@@ -24,6 +24,7 @@
 #pragma once
 #include <Eigen/Core>
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -39,6 +40,7 @@ struct WindowSettings {
   double long_time_constant = 10.0;        ///< forgetting of the long check window [s] (unit checks)
   bool stationary_hold = false;            ///< the inverter holds the voltage in the stator frame
   double inverter_zero_crossing_current = 0.0;  ///< the inverter error passes zero as tanh(i / this) [A]; 0 = sign
+  bool inverter_width_sensitivity = false;  ///< keep the twice-the-width column (the inverter model is on)
   int voltage_delay_samples = 0;           ///< 0: u(t_k) acts on [t_k, t_k+1); 1: on [t_k+1, t_k+2)
 };
 
@@ -165,6 +167,7 @@ class BlockStatistics {
     double I_d, I_q, OmIq, OmId, U_d, U_q, Om, Ustep_d, Ustep_q, Inv_d, Inv_q, Wide_d, Wide_q;
     double shape_d, shape_q;                // inverter error shape s at the sample
     double theta_e;                         // electrical angle (NaN when not logged)
+    std::array<double, 3> phase;            // phase currents a, b, c (when theta_e is known)
   };
   void inverterShapeIntegral(const Cumulative& previous, const Cumulative& current, const Sample& s, double dt,
                              double width, double& int_d, double& int_q) const;

@@ -83,8 +83,8 @@ void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulativ
   // The sign of each phase current is piecewise constant; a sign change between the samples is
   // placed where the linearly interpolated current crosses zero (a trapezoid would smear every
   // crossing over a whole period: a misfit of about V T / 2 per crossing).
-  const std::array<double, 3> a = phaseFromDq(p.i_d, p.i_q, p.theta_e);
-  const std::array<double, 3> b = phaseFromDq(c.i_d, c.i_q, s.theta_e);
+  const std::array<double, 3>& a = p.phase;
+  const std::array<double, 3>& b = c.phase;
   std::array<double, 3> mean{};
   for (int k = 0; k < 3; ++k) {
     const double ia = a[static_cast<std::size_t>(k)], ib = b[static_cast<std::size_t>(k)];
@@ -128,7 +128,15 @@ bool BlockStatistics::add(const Sample& s) {
   c.u_d = s.u_d;
   c.u_q = s.u_q;
   c.theta_e = s.theta_e;
-  inverterShape(s, c.shape_d, c.shape_q);
+  if (std::isfinite(s.theta_e)) {  // one cos/sin per sample for the phase currents and the shape
+    const double cs = std::cos(s.theta_e), sn = std::sin(s.theta_e);
+    c.phase = inverseClarke({cs * s.i_d - sn * s.i_q, sn * s.i_d + cs * s.i_q});
+    const Vec2 v = clarke(sign(c.phase[0]), sign(c.phase[1]), sign(c.phase[2]));
+    c.shape_d = cs * v.x + sn * v.y;
+    c.shape_q = -sn * v.x + cs * v.y;
+  } else {
+    inverterShape(s, c.shape_d, c.shape_q);
+  }
   const std::size_t cap = ring_.size();
   if (count_ > 0) {
     const Cumulative& p = ring_[(head_ + count_ - 1) % cap];
@@ -165,10 +173,12 @@ bool BlockStatistics::add(const Sample& s) {
     c.Inv_q = p.Inv_q + inv_q;
     // The same with twice the width (a sharp sign change: a width of 2 % of the current): how much
     // the estimates depend on the zero-crossing shape, which nobody knows exactly.
-    const double wide = width > 0 ? 2.0 * width : 0.02 * std::sqrt(c.i_d * c.i_d + c.i_q * c.i_q) + 1e-12;
-    inverterShapeIntegral(p, c, s, dt, wide, inv_d, inv_q);
-    c.Wide_d = p.Wide_d + inv_d;
-    c.Wide_q = p.Wide_q + inv_q;
+    if (settings_.inverter_width_sensitivity) {
+      const double wide = width > 0 ? 2.0 * width : 0.02 * std::sqrt(c.i_d * c.i_d + c.i_q * c.i_q) + 1e-12;
+      inverterShapeIntegral(p, c, s, dt, wide, inv_d, inv_q);
+      c.Wide_d = p.Wide_d + inv_d;
+      c.Wide_q = p.Wide_q + inv_q;
+    }
   } else {
     // First sample of a stretch: with a declared delay the voltage acting now is unknown; the
     // commanded one stands in for the first period only (one period in a block of M).

@@ -34,8 +34,16 @@ ParameterVector OnlineIdentifier::nanVector() {
   return {nan, nan, nan, nan};
 }
 
+namespace {
+WindowSettings windowFor(const IdentifierConfig& c) {
+  WindowSettings w = c.window;
+  w.inverter_width_sensitivity = c.inverter.estimate_voltage;  // the extra column only when it is used
+  return w;
+}
+}  // namespace
+
 OnlineIdentifier::OnlineIdentifier(const IdentifierConfig& config)
-    : config_(config), stats_(config.window), period_(config.time.sample_period) {
+    : config_(config), stats_(windowFor(config)), period_(config.time.sample_period) {
   validate(config_);
 }
 
