@@ -163,6 +163,16 @@ void IdentifierNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("estimates withheld (no estimate yet)", nonfinite_estimates_);
   for (int p = 0; p < kParameterCount; ++p)
     stat.add(parameterNames()[p], std::string(toString(e.status[p])) + ": " + e.reason[p]);
+  if (e.fit.inverter_modelled)
+    stat.addf("inverter voltage [V]", "%.4g (%s: %s)", e.inverter_voltage, toString(e.inverter_status), e.inverter_reason.c_str());
+  if (identifier_->config().thermal.enabled) {
+    const auto temperature = [&](const char* key, const Temperature& t) {
+      if (std::isfinite(t.value)) stat.addf(key, "%.1f +- %.1f K", t.value, t.uncertainty);
+      else stat.add(key, "unknown (parameter not identified)");
+    };
+    temperature("winding temperature [degC]", e.winding_temperature);
+    temperature("magnet temperature [degC]", e.magnet_temperature);
+  }
 }
 
 }  // namespace pmsm_param_id

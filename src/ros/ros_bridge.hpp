@@ -115,6 +115,12 @@ inline ParameterEstimate toMessage(const Estimate& e, const ros::Time& stamp, co
   m.noise_std[1] = e.fit.noise_std_q;
   m.fit_likely_cause = e.fit.likely_cause;
   m.sample_period = e.sample_period;
+  m.inverter_voltage = e.inverter_voltage;
+  m.inverter_voltage_status = static_cast<std::uint8_t>(e.inverter_status);
+  m.winding_temperature = e.winding_temperature.value;
+  m.winding_temperature_uncertainty = e.winding_temperature.uncertainty;
+  m.magnet_temperature = e.magnet_temperature.value;
+  m.magnet_temperature_uncertainty = e.magnet_temperature.uncertainty;
   m.fitness = e.fitness;
   m.iteration = e.iteration;
   m.temperature = e.temperature;

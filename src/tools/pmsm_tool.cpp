@@ -58,6 +58,10 @@ json estimateJson(const Estimate& e) {
               {"speed_unit_verified", e.fit.speed_unit_verified},
               {"likely_cause", e.fit.likely_cause.empty() ? json(nullptr) : json(e.fit.likely_cause)}};
   j["sample_period"] = numberOrNull(e.sample_period);
+  j["winding_temperature"] = numberOrNull(e.winding_temperature.value);
+  j["winding_temperature_uncertainty"] = numberOrNull(e.winding_temperature.uncertainty);
+  j["magnet_temperature"] = numberOrNull(e.magnet_temperature.value);
+  j["magnet_temperature_uncertainty"] = numberOrNull(e.magnet_temperature.uncertainty);
   j["inverter_voltage"] = {{"value", numberOrNull(e.inverter_voltage)},
                            {"status", toString(e.inverter_status)},
                            {"reason", e.inverter_reason},
@@ -94,7 +98,7 @@ IdentifierConfig configFor(const std::string& config_path, const std::string& me
   return c;
 }
 
-void printEstimate(const Estimate& e) {
+void printEstimate(const Estimate& e, bool thermal_enabled = false) {
   std::printf("method %s\n", e.method.c_str());
   const char* units[] = {"ohm", "H", "H", "Wb"};
   for (int p = 0; p < kParameterCount; ++p)
@@ -105,6 +109,14 @@ void printEstimate(const Estimate& e) {
                 e.fit.consistent ? "consistent with the noise" : "POOR", e.fit.fit_ratio_d, e.fit.fit_ratio_q,
                 e.fit.noise_std_d, e.fit.noise_std_q);
   if (!e.fit.likely_cause.empty()) std::printf("  likely cause: %s\n", e.fit.likely_cause.c_str());
+  const auto temperature = [](const char* name, const Temperature& t) {
+    if (std::isfinite(t.value)) std::printf("  %s temperature = %.1f degC +- %.1f K\n", name, t.value, t.uncertainty);
+    else std::printf("  %s temperature unknown (its parameter is not identified)\n", name);
+  };
+  if (std::isfinite(e.winding_temperature.value) || std::isfinite(e.magnet_temperature.value) || thermal_enabled) {
+    temperature("winding", e.winding_temperature);
+    temperature("magnet", e.magnet_temperature);
+  }
   if (e.fit.inverter_modelled)
     std::printf("  inverter voltage = %.4g V %s %s\n", e.inverter_voltage, toString(e.inverter_status), e.inverter_reason.c_str());
   std::printf("  sampling period %.4g s; fitness = %.4g A^2, samples = %llu, skipped = %llu, time resets = %llu, gaps = %llu\n",
@@ -134,7 +146,7 @@ int runIdentify(const std::string& csv, const std::string& method, const std::st
                  block > 0 ? (std::to_string(block) + " s").c_str() : "at least 5 ms and 10 samples");
     return 2;
   }
-  printEstimate(e);
+  printEstimate(e, config.thermal.enabled);
   if (!json_out.empty()) writeJson(json_out, estimateJson(e));
   return 0;
 }

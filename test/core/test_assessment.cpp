@@ -544,3 +544,58 @@ TEST(Wls, NoMethodEndsBelowTheExactOptimum) {
         EXPECT_LT(std::abs(errorPercent(e.parameters[p], reference.parameters[p])), 0.5) << method << " " << parameterNames()[p];
   }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Temperatures from identified parameters (a thermal: block is all the config needs).
+
+TEST(Thermal, WindingAndMagnetTemperaturesFollowRsAndPsiF) {
+  const std::string path = test_helpers::writeTemp(
+      "thermal.yaml", "thermal:\n  reference_temperature: 20.0\n  R_s_at_reference: 2.875\n  psi_f_at_reference: 0.17858\n");
+  const IdentifierConfig c = loadIdentifierConfig(path);
+  ASSERT_TRUE(c.thermal.enabled);
+  Scenario s = test_helpers::scenario("wc1_drive.yaml");
+  s.duration = 0.6;
+  s.R_s_scale = Profile::ramp(1.0, 1.2, 0.1, 0.3);      // winding +50.9 K
+  s.psi_f_scale = Profile::ramp(1.0, 0.97, 0.1, 0.3);   // magnet +25 K (NdFeB, -0.12 %/K)
+  const auto data = test_helpers::run(s);
+  for (const char* method : {"fbdapso", "rls"}) {
+    const Estimate e = identify(samplesOf(data), method, c);
+    ASSERT_TRUE(e.identifiable[kRs]) << e.reason[kRs];
+    ASSERT_TRUE(e.identifiable[kPsiF]) << e.reason[kPsiF];
+    EXPECT_NEAR(e.winding_temperature.value, 20.0 + 0.2 / 3.93e-3, 3.0) << method;
+    EXPECT_NEAR(e.magnet_temperature.value, 20.0 + 0.03 / 1.2e-3, 5.0) << method;
+    EXPECT_GT(e.winding_temperature.uncertainty, 0.0);
+  }
+  // No temperature from a parameter that is not identified: speed in rpm makes every fit poor.
+  auto bad = samplesOf(data);
+  for (auto& x : bad) x.omega_e *= 60.0 / (2.0 * M_PI) / 4.0;
+  const Estimate e = identify(bad, "rls", c);
+  EXPECT_TRUE(std::isnan(e.winding_temperature.value));
+  EXPECT_TRUE(std::isnan(e.magnet_temperature.value));
+}
+
+TEST(Thermal, ReferencesAreLearntAtADeclaredColdStart) {
+  const std::string path = test_helpers::writeTemp("cold.yaml", "thermal:\n  reference_temperature: 25.0\n");
+  const IdentifierConfig c = loadIdentifierConfig(path);
+  EXPECT_EQ(loadError("thermal:\n  reference_temprature: 25\n", false),
+            "key 'thermal.reference_temprature': unknown key (did you mean 'thermal.reference_temperature'?)");
+  Scenario s = test_helpers::scenario("wc1_drive.yaml");
+  s.duration = 0.8;
+  s.R_s_scale = Profile::ramp(1.0, 1.1, 0.3, 0.45);  // heats by 25.4 K after the cold start
+  const auto data = test_helpers::run(s);
+  IdentifierConfig cc = c;
+  cc.method = "rls";
+  auto id = makeIdentifier(cc);
+  for (const auto& d : data) {
+    id->process(d.sample);
+    if (d.sample.t > 0.25 && d.sample.t < 0.2502) {  // still cold: the learnt references hold
+      const Estimate cold = id->estimate();
+      EXPECT_NEAR(cold.winding_temperature.value, 25.0, 1.0);
+    }
+  }
+  // Learnt without any estimate asked for before the end (as ./run identify does).
+  EXPECT_NEAR(id->estimate().winding_temperature.value, 25.0 + 0.1 / 3.93e-3, 3.0) << id->estimate().reason[kRs];
+  auto quiet = makeIdentifier(cc);
+  for (const auto& d : data) quiet->process(d.sample);
+  EXPECT_NEAR(quiet->estimate().winding_temperature.value, 25.0 + 0.1 / 3.93e-3, 3.0);
+}

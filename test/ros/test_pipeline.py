@@ -286,6 +286,24 @@ class BenchAndIdentifyInputs(unittest.TestCase):
         self.assertIn("rpm", jb["fit"]["likely_cause"])
 
 
+class Thermal(unittest.TestCase):
+    def test_a_config_with_only_a_thermal_block_gives_both_temperatures(self):
+        tmp = tempfile.mkdtemp(prefix="pmsm_thermal_")
+        scenario = os.path.join(ROOT, "config", "scenarios", "wc1_drive.yaml")
+        csv, cfg, out = (os.path.join(tmp, n) for n in ("log.csv", "thermal.yaml", "out.json"))
+        self.assertEqual(tool("pmsm_tool", "simulate", "--scenario", scenario, "--csv", csv, "--duration", "0.4").returncode, 0)
+        with open(cfg, "w") as f:
+            f.write("thermal:\n  reference_temperature: 40.0\n  R_s_at_reference: 2.7\n  psi_f_at_reference: 0.18\n")
+        r = tool("pmsm_tool", "identify", "--csv", csv, "--config", cfg, "--json", out)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(out) as f:
+            j = json.load(f)
+        # R_s = 2.875 is 6.5 % above 2.7: 40 + 0.0648 / 3.93e-3 = 56.5 degC; psi_f 0.17858 is 0.79 % below
+        # 0.18: 40 + 0.0079 / 1.2e-3 = 46.6 degC.
+        self.assertAlmostEqual(j["winding_temperature"], 40.0 + (2.875 / 2.7 - 1) / 3.93e-3, delta=3.0)
+        self.assertAlmostEqual(j["magnet_temperature"], 40.0 + (0.17858 / 0.18 - 1) / -1.2e-3, delta=5.0)
+
+
 class CsvToBag(unittest.TestCase):
     def test_a_drive_log_becomes_a_bag_that_replays_and_converges(self):
         tmp = tempfile.mkdtemp(prefix="pmsm_csv2bag_")

@@ -6,6 +6,7 @@
 
 #include "pmsm_param_id/identification/block_statistics.hpp"
 #include "pmsm_param_id/identification/particle_swarm.hpp"
+#include "pmsm_param_id/identification/thermal.hpp"
 #include "pmsm_param_id/model/motor_model.hpp"
 
 namespace pmsm_param_id {
@@ -67,6 +68,7 @@ struct IdentifierConfig {
   AssessmentSettings assessment;
   TimeSettings time;
   InverterModelSettings inverter;
+  ThermalSettings thermal;
 };
 
 /// Known method names, in the order reports use.

@@ -47,6 +47,8 @@ struct Estimate {
   ParameterStatus inverter_status = ParameterStatus::NoData;
   std::string inverter_reason;
   double inverter_relative_uncertainty = 0.0;  ///< [-]
+  Temperature winding_temperature;  ///< from R_s while identified (thermal: block), else NaN [degC]
+  Temperature magnet_temperature;   ///< from psi_f while identified (thermal: block), else NaN [degC]
   double fitness = 0.0;             ///< mean squared block current error at the estimate [A^2]
   double sample_period = 0.0;       ///< nominal sampling period in use [s] (0 while unknown)
   std::uint64_t iteration = 0;      ///< swarm iterations (0 for ekf, rls)
@@ -123,6 +125,7 @@ class OnlineIdentifier {
   mutable std::uint64_t fit_blocks_ = ~0ull;  // block count of the cached fit
   mutable FitCheck fit_cache_;
   mutable ParameterVector fit_start_{};
+  mutable double learned_R_reference_ = 0.0, learned_psi_reference_ = 0.0;  // thermal references learnt at the start
 };
 
 /// Builds the identifier named by config.method. ConfigError on an unknown method or bad values.

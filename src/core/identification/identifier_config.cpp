@@ -133,7 +133,24 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   if (c.window.inverter_zero_crossing_current < 0) y.fail("inverter.zero_crossing_current", "must be >= 0 [A] (0 = sign)");
   c.inverter.max_relative_uncertainty =
       y.positive("inverter.max_relative_uncertainty", c.inverter.max_relative_uncertainty);
+  bool thermal_reference_missing = false;
+  if (y.has("thermal")) {
+    ThermalSettings& t = c.thermal;
+    t.enabled = true;
+    thermal_reference_missing = !y.has("thermal.reference_temperature");  // reported after a typo is
+    t.reference_temperature = y.number("thermal.reference_temperature", 20.0);  // named by its nearest key
+    if (t.reference_temperature < -60 || t.reference_temperature > 250)
+      y.fail("thermal.reference_temperature", "must be in [-60, 250] degC");
+    t.R_s_at_reference = y.number("thermal.R_s_at_reference", 0.0);
+    if (t.R_s_at_reference < 0) y.fail("thermal.R_s_at_reference", "must be > 0 [ohm] (or absent: learnt at the start)");
+    t.psi_f_at_reference = y.number("thermal.psi_f_at_reference", 0.0);
+    if (t.psi_f_at_reference < 0) y.fail("thermal.psi_f_at_reference", "must be > 0 [Wb] (or absent: learnt at the start)");
+    t.copper_coefficient = y.positive("thermal.copper_coefficient", t.copper_coefficient);
+    t.magnet_coefficient = y.number("thermal.magnet_coefficient", t.magnet_coefficient);
+    if (!(t.magnet_coefficient < 0)) y.fail("thermal.magnet_coefficient", "must be < 0 [1/K] (magnets weaken when hot)");
+  }
   y.rejectUnknownKeys();
+  if (thermal_reference_missing) y.fail("thermal.reference_temperature", "missing [degC]");
   validate(c, path);
   return c;
 }

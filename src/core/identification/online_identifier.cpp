@@ -58,6 +58,7 @@ void OnlineIdentifier::reset() {
   broken_ = true;
   noise_std_ = 0.0;
   fit_blocks_ = ~0ull;
+  learned_R_reference_ = learned_psi_reference_ = 0.0;
 }
 
 SampleStatus OnlineIdentifier::process(const Sample& s) {
@@ -140,6 +141,13 @@ SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status
   if (box_.valid) update(s, new_block, broken_);
   broken_ = false;
   ++counters_.used;
+  // A declared cold start: the thermal references are the first identified values, whether or not
+  // anybody asks for an estimate then (checked once per block length until both are learnt).
+  const ThermalSettings& th = config_.thermal;
+  const bool learning = th.enabled && ((th.R_s_at_reference == 0.0 && learned_R_reference_ == 0.0) ||
+                                       (th.psi_f_at_reference == 0.0 && learned_psi_reference_ == 0.0));
+  if (learning && new_block && box_.valid && stats_.blocks() % static_cast<std::uint64_t>(stats_.blockSamples()) == 0)
+    estimate();
   return status;
 }
 
@@ -271,6 +279,23 @@ Estimate OnlineIdentifier::estimate() const {
   e.reason = a.reason;
   e.relative_uncertainty = a.relative_uncertainty;
   for (int p = 0; p < kParameterCount; ++p) e.identifiable[p] = e.status[p] == ParameterStatus::Identified;
+  const ThermalSettings& th = config_.thermal;
+  if (th.enabled) {
+    // References: configured, or the first identified values (a declared cold start at
+    // reference_temperature).
+    if (th.R_s_at_reference == 0.0 && learned_R_reference_ == 0.0 && e.identifiable[kRs])
+      learned_R_reference_ = e.parameters[kRs];
+    if (th.psi_f_at_reference == 0.0 && learned_psi_reference_ == 0.0 && e.identifiable[kPsiF])
+      learned_psi_reference_ = e.parameters[kPsiF];
+    const double R_ref = th.R_s_at_reference > 0 ? th.R_s_at_reference : learned_R_reference_;
+    const double psi_ref = th.psi_f_at_reference > 0 ? th.psi_f_at_reference : learned_psi_reference_;
+    if (e.identifiable[kRs])
+      e.winding_temperature = temperatureFrom(e.parameters[kRs], e.relative_uncertainty[kRs], R_ref,
+                                              th.reference_temperature, th.copper_coefficient);
+    if (e.identifiable[kPsiF])
+      e.magnet_temperature = temperatureFrom(e.parameters[kPsiF], e.relative_uncertainty[kPsiF], psi_ref,
+                                             th.reference_temperature, th.magnet_coefficient);
+  }
   bool positive = true;
   for (double v : e.parameters) positive = positive && std::isfinite(v) && v > 0;
   e.fitness = positive && stats_.hasBlocks() ? stats_.fitness(e.parameters) : std::numeric_limits<double>::quiet_NaN();
