@@ -205,7 +205,9 @@ bool BlockStatistics::add(const Sample& s) {
   rankOneUpper(S_d_, zd, scale_);
   rankOneUpper(S_q_, zq, scale_);
   stored_weight_ += scale_;
-  if (have_previous_block_) {
+  // The noise level needs the mean square of consecutive-block differences, not every one of
+  // them: every fourth difference is an unbiased sample and costs a quarter.
+  if (have_previous_block_ && (blocks_ & 3u) == 0) {
     const BlockD dd = zd - last_d_;
     const BlockQ dq = zq - last_q_;
     rankOneUpper(dS_d_, dd, scale_);
