@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "pmsm_param_id/ConditionEvent.h"
 #include "pmsm_param_id/io/config_error.hpp"
 
 namespace pmsm_param_id {
@@ -28,7 +29,9 @@ IdentifierNode::IdentifierNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
     throw ConfigError("parameter ~input: must be 'batch' or 'single', got '" + input + "'");
 
   identifier_ = makeIdentifier(config);
+  monitor_ = ConditionMonitor(config.alarms);
   pub_estimate_ = pnh_.advertise<ParameterEstimate>("estimate", 1000);
+  pub_events_ = pnh_.advertise<ConditionEvent>("events", 100, true);
   const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
   if (input == "batch")
     sub_ = nh_.subscribe("samples_batch", 1000, &IdentifierNode::onBatch, this, hints);
@@ -104,6 +107,18 @@ void IdentifierNode::publish() {
     }
   pub_estimate_.publish(toMessage(e, clock_.stampOf(last_t_), frame_id_));
   ++published_;
+  for (const AlarmEvent& ev : monitor_.update(e)) {  // alarms only from identified parameters
+    ConditionEvent m;
+    m.header.stamp = clock_.stampOf(ev.t);
+    m.header.frame_id = frame_id_;
+    m.method = e.method;
+    m.kind = toString(ev.kind);
+    m.raised = ev.raised;
+    m.text = ev.text;
+    pub_events_.publish(m);
+    if (ev.raised) ROS_ERROR("alarm %s: %s", m.kind.c_str(), ev.text.c_str());
+    else ROS_INFO("alarm %s cleared", m.kind.c_str());
+  }
 }
 
 void IdentifierNode::onTimer(const ros::WallTimerEvent&) {
@@ -143,6 +158,12 @@ void IdentifierNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
                   e.fit.likely_cause.empty() ? "" : ": likely cause: ", e.fit.likely_cause.c_str());
   else if (stat.level == DiagnosticStatus::OK)
     stat.summaryf(DiagnosticStatus::OK, "running; %d of 4 parameters identified", identified);
+  for (AlarmKind k : {AlarmKind::WindingOverTemperature, AlarmKind::Demagnetisation, AlarmKind::ParameterJump,
+                      AlarmKind::FastDrift}) {
+    if (!monitor_.active(k)) continue;
+    const bool severe = k == AlarmKind::WindingOverTemperature || k == AlarmKind::Demagnetisation;
+    stat.mergeSummaryf(severe ? DiagnosticStatus::ERROR : DiagnosticStatus::WARN, "alarm: %s", toString(k));
+  }
   stat.add("method", e.method);
   stat.add("sampling period [s]", e.sample_period);
   stat.add("current noise from the data [A]", std::max(e.fit.noise_std_d, e.fit.noise_std_q));

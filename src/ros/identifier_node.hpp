@@ -6,6 +6,7 @@
 #include <memory>
 #include <string>
 
+#include "pmsm_param_id/identification/monitor.hpp"
 #include "pmsm_param_id/identification/online_identifier.hpp"
 #include "ros_bridge.hpp"
 
@@ -30,6 +31,9 @@ class IdentifierNode {
   StreamClock clock_;
   ros::Subscriber sub_;
   ros::Publisher pub_estimate_;
+  ros::Publisher pub_events_;
+  ConditionMonitor monitor_;
+  std::vector<AlarmEvent> recent_events_;
   ros::WallTimer timer_;
   diagnostic_updater::Updater updater_;
   std::string frame_id_;

@@ -7,6 +7,7 @@
 
 #include "pmsm_param_id/identification/identifiers.hpp"
 #include "pmsm_param_id/identification/metrics.hpp"
+#include "pmsm_param_id/identification/monitor.hpp"
 #include "pmsm_param_id/identification/online_identifier.hpp"
 #include "pmsm_param_id/io/config_error.hpp"
 #include "pmsm_param_id/io/log_format.hpp"
@@ -598,4 +599,65 @@ TEST(Thermal, ReferencesAreLearntAtADeclaredColdStart) {
   auto quiet = makeIdentifier(cc);
   for (const auto& d : data) quiet->process(d.sample);
   EXPECT_NEAR(quiet->estimate().winding_temperature.value, 25.0 + 0.1 / 3.93e-3, 3.0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Condition monitoring (alarms) on the estimates.
+
+namespace {
+// Feeds a run to an identifier with the thermal references of the paper's motor at 20 degC and a
+// monitor that sees an estimate every millisecond; returns the events.
+std::vector<AlarmEvent> monitorRun(const std::vector<SimulatedSample>& data, const std::string& method, std::uint64_t seed) {
+  IdentifierConfig c;
+  c.method = method;
+  c.seed = seed;
+  c.thermal.enabled = true;
+  c.thermal.reference_temperature = 20.0;
+  c.thermal.R_s_at_reference = 2.875;
+  c.thermal.psi_f_at_reference = 0.17858;
+  auto id = makeIdentifier(c);
+  ConditionMonitor monitor;
+  std::vector<AlarmEvent> events;
+  for (std::size_t k = 0; k < data.size(); ++k) {
+    id->process(data[k].sample);
+    if (k % 10 == 9)
+      for (const AlarmEvent& ev : monitor.update(id->estimate())) events.push_back(ev);
+  }
+  return events;
+}
+}  // namespace
+
+TEST(Monitor, FivePercentDemagnetisationIsAlarmedWithinHalfASecondAndAHealthyRunRaisesNothing) {
+  for (std::uint64_t seed = 1; seed <= 10; ++seed) {
+    Scenario s = test_helpers::scenario("wc1_drive.yaml");
+    s.seed = seed;
+    s.duration = 0.9;
+    const auto healthy = test_helpers::run(s);
+    for (const AlarmEvent& ev : monitorRun(healthy, "rls", seed))
+      ADD_FAILURE() << "healthy seed " << seed << ": " << toString(ev.kind) << " " << ev.text;
+    s.psi_f_scale = Profile::step(1.0, 0.95, 0.4);  // 5 % of the magnetisation lost at 0.4 s
+    const auto demag = test_helpers::run(s);
+    double alarm_at = -1.0;
+    for (const AlarmEvent& ev : monitorRun(demag, "rls", seed)) {
+      if (ev.kind == AlarmKind::Demagnetisation && ev.raised && alarm_at < 0) alarm_at = ev.t;
+      EXPECT_TRUE(ev.kind == AlarmKind::Demagnetisation || !ev.raised) << toString(ev.kind) << " " << ev.text;
+    }
+    EXPECT_GE(alarm_at, 0.4) << "seed " << seed;
+    EXPECT_LE(alarm_at, 0.9) << "seed " << seed;
+    EXPECT_LE(alarm_at - 0.4, 0.5) << "seed " << seed;
+  }
+}
+
+TEST(Monitor, WindingOverTemperatureAndAJumpInResistance) {
+  Scenario s = test_helpers::scenario("wc1_drive.yaml");
+  s.duration = 1.2;
+  s.R_s_scale = Profile::step(1.0, 1.55, 0.4);  // +55 %: 20 + 140 = 160 degC, and a sudden jump
+  const auto data = test_helpers::run(s);
+  bool over = false, jump = false;
+  for (const AlarmEvent& ev : monitorRun(data, "rls", 1)) {
+    over = over || (ev.kind == AlarmKind::WindingOverTemperature && ev.raised);
+    jump = jump || (ev.kind == AlarmKind::ParameterJump && ev.raised);
+  }
+  EXPECT_TRUE(over);
+  EXPECT_TRUE(jump);
 }

@@ -105,6 +105,8 @@ class BlockStatistics {
   void breakContinuity();
   /// Forget everything, including the nominal period.
   void reset();
+  /// Forget the long check window only (the motor changed: its old differences no longer apply).
+  void resetLongWindow();
 
   /// Mean squared block residual r_d^2 + r_q^2 [A^2] for parameters p; +inf before any block.
   /// Inline: the swarm calls it 20 times per sample.

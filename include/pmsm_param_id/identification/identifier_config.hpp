@@ -7,6 +7,7 @@
 #include "pmsm_param_id/identification/block_statistics.hpp"
 #include "pmsm_param_id/identification/particle_swarm.hpp"
 #include "pmsm_param_id/identification/thermal.hpp"
+#include "pmsm_param_id/identification/monitor_settings.hpp"
 #include "pmsm_param_id/model/motor_model.hpp"
 
 namespace pmsm_param_id {
@@ -69,6 +70,7 @@ struct IdentifierConfig {
   TimeSettings time;
   InverterModelSettings inverter;
   ThermalSettings thermal;
+  AlarmSettings alarms;
 };
 
 /// Known method names, in the order reports use.

@@ -30,7 +30,6 @@ class SwarmIdentifier : public OnlineIdentifier {
 
  private:
   std::unique_ptr<ParticleSwarm> swarm_;
-  std::uint64_t cycles_ = 0;
 };
 
 using EkfState = Eigen::Matrix<double, 6, 1>;     ///< {i_d, i_q, R_s, L_d, L_q, psi_f}
@@ -54,7 +53,6 @@ class EkfIdentifier : public OnlineIdentifier {
 
  private:
   std::array<bool, kParameterCount> clamped_{};
-  std::uint64_t updates_ = 0;
   using Vec6 = Eigen::Matrix<double, 6, 1>;
   using Mat6 = Eigen::Matrix<double, 6, 6>;
   Vec6 x_ = Vec6::Zero();

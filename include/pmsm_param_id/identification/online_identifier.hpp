@@ -122,6 +122,9 @@ class OnlineIdentifier {
   bool have_last_ = false;
   bool broken_ = true;
   double noise_std_ = 0.0;
+  std::uint64_t samples_since_refresh_ = 0;
+  ParameterVector watched_optimum_{};
+  bool have_watched_ = false;
   mutable std::uint64_t fit_blocks_ = ~0ull;  // block count of the cached fit
   mutable FitCheck fit_cache_;
   mutable ParameterVector fit_start_{};

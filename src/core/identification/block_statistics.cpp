@@ -31,6 +31,13 @@ void BlockStatistics::reset() {
   blocks_in_stretch_ = 0;
 }
 
+void BlockStatistics::resetLongWindow() {
+  long_d_.setZero();
+  long_q_.setZero();
+  long_weight_ = 0.0;
+  have_long_block_ = false;
+}
+
 void BlockStatistics::configure(double nominal_period) {
   if (!(nominal_period > 0) || !std::isfinite(nominal_period))
     throw std::invalid_argument("BlockStatistics: nominal period must be > 0");

@@ -18,7 +18,6 @@ void EkfIdentifier::restart() {
     P_(2 + p, 2 + p) = s * s;
   }
   clamped_.fill(false);
-  updates_ = 0;
   have_previous_ = false;
 }
 
@@ -50,8 +49,6 @@ EkfState ekfPredict(const EkfState& x, const Sample& k, double T, EkfJacobian* j
 }
 
 void EkfIdentifier::update(const Sample& s, bool, bool continuity_broken) {
-  // Keep the clamp box on the data's optimum and the noise estimate fresh, every ten swarm cycles.
-  if (++updates_ % static_cast<std::uint64_t>(10 * config_.swarm.reset_iterations) == 0) refreshSearchBox();
   // Measurement noise: configured, or the data's own (floored at 0.1 % of the current, so that
   // noise-free data do not make the filter overconfident).
   const double current_scale = std::abs(s.i_d) + std::abs(s.i_q);

@@ -149,6 +149,15 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
     t.magnet_coefficient = y.number("thermal.magnet_coefficient", t.magnet_coefficient);
     if (!(t.magnet_coefficient < 0)) y.fail("thermal.magnet_coefficient", "must be < 0 [1/K] (magnets weaken when hot)");
   }
+  AlarmSettings& al = c.alarms;
+  al.winding_max_temperature = y.number("alarms.winding_max_temperature", al.winding_max_temperature);
+  al.winding_hysteresis = y.positive("alarms.winding_hysteresis", al.winding_hysteresis);
+  al.magnet_above_winding = y.positive("alarms.magnet_above_winding", al.magnet_above_winding);
+  al.confirm_time = y.positive("alarms.confirm_time", al.confirm_time);
+  al.jump_fraction = y.positive("alarms.jump_fraction", al.jump_fraction);
+  al.jump_window = y.positive("alarms.jump_window", al.jump_window);
+  al.drift_rate = y.positive("alarms.drift_rate", al.drift_rate);
+  al.drift_window = y.positive("alarms.drift_window", al.drift_window);
   y.rejectUnknownKeys();
   if (thermal_reference_missing) y.fail("thermal.reference_temperature", "missing [degC]");
   validate(c, path);

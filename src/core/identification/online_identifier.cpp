@@ -59,6 +59,8 @@ void OnlineIdentifier::reset() {
   noise_std_ = 0.0;
   fit_blocks_ = ~0ull;
   learned_R_reference_ = learned_psi_reference_ = 0.0;
+  samples_since_refresh_ = 0;
+  have_watched_ = false;
 }
 
 SampleStatus OnlineIdentifier::process(const Sample& s) {
@@ -141,6 +143,12 @@ SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status
   if (box_.valid) update(s, new_block, broken_);
   broken_ = false;
   ++counters_.used;
+  // Every ten swarm cycles' worth of samples: the box, the noise level, the inverter voltage and a
+  // watch for sudden changes of the motor (an exact fit, ~5 us, amortised over 500 samples).
+  if (box_.valid && ++samples_since_refresh_ >= static_cast<std::uint64_t>(10 * config_.swarm.reset_iterations)) {
+    samples_since_refresh_ = 0;
+    refreshSearchBox();
+  }
   // A declared cold start: the thermal references are the first identified values, whether or not
   // anybody asks for an estimate then (checked once per block length until both are learnt).
   const ThermalSettings& th = config_.thermal;
@@ -206,6 +214,25 @@ bool OnlineIdentifier::refreshSearchBox() {
   if (!fit.available) return false;
   noise_std_ = std::max(fit.noise_std_d, fit.noise_std_q);
   useInverterVoltage(fit);
+  // A sudden change of the motor (a step of R_s, L_d, L_q or psi_f: a fault, a demagnetisation)
+  // would read, in the long check window of differenced blocks, as a unit error for its whole
+  // memory. When the model fits the window again and a well-determined optimum has moved by more
+  // than 2 % and 5 standard deviations from the last one that fitted, the long window starts again.
+  // (With a wrong unit the fit never settles, so the evidence of the unit is kept.)
+  if (fit.consistent && have_watched_) {
+    for (int p = 0; p < kParameterCount; ++p) {
+      if (!(fit.determined[p] && std::isfinite(fit.relative_std[p]))) continue;
+      const double change = std::abs(fit.optimum[p] / watched_optimum_[p] - 1.0);
+      if (change > 0.02 && change > 5.0 * fit.relative_std[p]) {
+        stats_.resetLongWindow();
+        break;
+      }
+    }
+  }
+  if (fit.consistent) {
+    watched_optimum_ = fit.optimum;
+    have_watched_ = true;
+  }
   const double inner = std::sqrt(config_.search.span_factor);
   ParameterVector centre = box_.centre;
   bool moved = false;

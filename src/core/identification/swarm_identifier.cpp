@@ -41,12 +41,11 @@ void SwarmIdentifier::update(const Sample&, bool, bool) {
   const auto fitness = [&stats](const ParameterVector& p) { return stats.fitness(p); };
   for (int i = 0; i < config_.iterations_per_sample; ++i) {
     swarm_->iterate(fitness);
-    // Every tenth cycle, or at once when the best sits on a face of the box: does the box still
-    // hold the data's optimum? (An exact fit costs about as much as 2 000 fitness evaluations.)
+    // At a new cycle whose best sits on a face of the box: does the box still hold the data's
+    // optimum? (The base class also checks every ten cycles' worth of samples.)
     if (swarm_->iterationInCycle() == 0) {
       const auto edge = swarm_->bestAtBound();
-      const bool at_edge = std::find(edge.begin(), edge.end(), true) != edge.end();
-      if (at_edge || ++cycles_ % 10 == 0) refreshSearchBox();
+      if (std::find(edge.begin(), edge.end(), true) != edge.end()) refreshSearchBox();
     }
   }
 }

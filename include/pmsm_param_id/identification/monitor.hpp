@@ -1,0 +1,56 @@
+// Condition monitoring on top of the estimates: winding over-temperature, demagnetisation, sudden
+// jumps and fast drift of R_s, L_d, L_q. Only identified parameters raise anything.
+//
+// Demagnetisation: a magnet's temperature estimated from psi_f alone cannot tell heat from lost
+// magnetisation. The magnets are heated through the air gap and by their own losses, and in a
+// running machine they stay within some kelvin of the winding, whose temperature R_s gives
+// independently. A psi_f that reads as a magnet more than `magnet_above_winding` hotter than the
+// winding, for `confirm_time`, is lost magnetisation (or, at a cold start, a magnet that was
+// already weak); a psi_f that falls faster than any thermal cause allows raises it too.
+#pragma once
+#include <deque>
+#include <string>
+#include <vector>
+
+#include "pmsm_param_id/identification/monitor_settings.hpp"
+#include "pmsm_param_id/identification/online_identifier.hpp"
+
+namespace pmsm_param_id {
+
+
+enum class AlarmKind { WindingOverTemperature = 0, Demagnetisation = 1, ParameterJump = 2, FastDrift = 3 };
+const char* toString(AlarmKind k);  ///< "winding_over_temperature", "demagnetisation", ...
+
+struct AlarmEvent {
+  double t = 0.0;       ///< stamp of the estimate [s]
+  AlarmKind kind{};
+  bool raised = true;   ///< false: cleared
+  std::string text;     ///< one line: what and why
+};
+
+class ConditionMonitor {
+ public:
+  explicit ConditionMonitor(const AlarmSettings& settings = {}) : s_(settings) {}
+  /// Feeds an estimate (in stamp order); returns the alarms raised or cleared by it.
+  std::vector<AlarmEvent> update(const Estimate& e);
+  bool active(AlarmKind k) const { return active_[static_cast<int>(k)]; }
+
+ private:
+  struct Point {
+    double t;
+    ParameterVector p;
+    std::array<bool, kParameterCount> ok;
+  };
+  void set(AlarmKind k, bool on, double t, const std::string& text, std::vector<AlarmEvent>& out);
+  AlarmSettings s_;
+  std::array<bool, 4> active_{};
+  double demag_since_ = -1.0, overtemp_since_ = -1.0;
+  std::deque<Point> history_;
+  struct LastValue {
+    double t = -1.0, value = 0.0;
+  };
+  std::array<LastValue, kParameterCount> last_{};
+  double jump_at_ = -1.0;
+};
+
+}  // namespace pmsm_param_id

@@ -1,0 +1,100 @@
+#include "pmsm_param_id/identification/monitor.hpp"
+
+#include <cmath>
+#include <cstdio>
+
+namespace pmsm_param_id {
+
+const char* toString(AlarmKind k) {
+  switch (k) {
+    case AlarmKind::WindingOverTemperature: return "winding_over_temperature";
+    case AlarmKind::Demagnetisation: return "demagnetisation";
+    case AlarmKind::ParameterJump: return "parameter_jump";
+    case AlarmKind::FastDrift: return "fast_drift";
+  }
+  return "?";
+}
+
+void ConditionMonitor::set(AlarmKind k, bool on, double t, const std::string& text, std::vector<AlarmEvent>& out) {
+  bool& a = active_[static_cast<int>(k)];
+  if (a == on) return;
+  a = on;
+  out.push_back({t, k, on, text});
+}
+
+std::vector<AlarmEvent> ConditionMonitor::update(const Estimate& e) {
+  std::vector<AlarmEvent> out;
+  const double t = e.t;
+  char buf[256];
+  // Winding over-temperature, with hysteresis.
+  const Temperature& tw = e.winding_temperature;
+  if (std::isfinite(tw.value)) {
+    if (tw.value > s_.winding_max_temperature) {
+      if (overtemp_since_ < 0) overtemp_since_ = t;
+      if (t - overtemp_since_ >= s_.confirm_time) {
+        std::snprintf(buf, sizeof buf, "winding at %.1f degC (+-%.1f K) above %.1f degC", tw.value, tw.uncertainty,
+                      s_.winding_max_temperature);
+        set(AlarmKind::WindingOverTemperature, true, t, buf, out);
+      }
+    } else {
+      overtemp_since_ = -1.0;
+      if (tw.value < s_.winding_max_temperature - s_.winding_hysteresis)
+        set(AlarmKind::WindingOverTemperature, false, t, "winding temperature back to normal", out);
+    }
+  }
+  // Demagnetisation: the magnet reads hotter than the winding by more than heat explains.
+  const Temperature& tm = e.magnet_temperature;
+  if (std::isfinite(tw.value) && std::isfinite(tm.value)) {
+    const double excess = tm.value - tw.value - tm.uncertainty - tw.uncertainty;
+    if (excess > s_.magnet_above_winding) {
+      if (demag_since_ < 0) demag_since_ = t;
+      if (t - demag_since_ >= s_.confirm_time) {
+        std::snprintf(buf, sizeof buf,
+                      "psi_f reads as a magnet at %.1f degC while the winding is at %.1f degC: %.0f K more than "
+                      "heat explains: lost magnetisation", tm.value, tw.value, tm.value - tw.value);
+        set(AlarmKind::Demagnetisation, true, t, buf, out);
+      }
+    } else {
+      demag_since_ = -1.0;
+      if (excess < 0.5 * s_.magnet_above_winding) set(AlarmKind::Demagnetisation, false, t, "psi_f consistent with heat", out);
+    }
+  }
+  // Jumps: an identified value against the last identified one, however long the estimate was
+  // not identified in between (a step makes the fit poor for a few window lengths), up to
+  // jump_window. Drift: the change over drift_window of identified values.
+  bool drift = false;
+  std::string drift_text;
+  history_.push_back({t, e.parameters, e.identifiable});
+  while (history_.size() > 2 && history_.front().t < t - s_.drift_window) history_.pop_front();
+  for (int p : {kRs, kLd, kLq}) {
+    if (!e.identifiable[p]) continue;
+    LastValue& last = last_[p];
+    if (last.t >= 0 && t - last.t <= s_.jump_window) {
+      const double change = e.parameters[p] / last.value - 1.0;
+      if (std::abs(change) > s_.jump_fraction) {
+        std::snprintf(buf, sizeof buf, "%s changed by %+.1f %% within %.3f s", parameterNames()[p].c_str(), 100 * change,
+                      t - last.t);
+        set(AlarmKind::ParameterJump, true, t, buf, out);
+        jump_at_ = t;
+      }
+    }
+    last = {t, e.parameters[p]};
+    for (const Point& old : history_) {
+      if (!old.ok[p] || t - old.t < 0.9 * s_.drift_window) continue;
+      const double rate = (e.parameters[p] / old.p[p] - 1.0) / (t - old.t);
+      if (std::abs(rate) > s_.drift_rate && !drift) {
+        drift = true;
+        std::snprintf(buf, sizeof buf, "%s drifting at %+.2f %%/s", parameterNames()[p].c_str(), 100 * rate);
+        drift_text = buf;
+      }
+      break;
+    }
+  }
+  if (active(AlarmKind::ParameterJump) && t - jump_at_ > s_.jump_window)
+    set(AlarmKind::ParameterJump, false, t, "no jump for a while", out);
+  if (drift) set(AlarmKind::FastDrift, true, t, drift_text, out);
+  else set(AlarmKind::FastDrift, false, t, "no fast drift", out);
+  return out;
+}
+
+}  // namespace pmsm_param_id
