@@ -661,3 +661,29 @@ TEST(Monitor, WindingOverTemperatureAndAJumpInResistance) {
   EXPECT_TRUE(over);
   EXPECT_TRUE(jump);
 }
+
+// The identifier's temperatures against the simulator's thermal model (time constants shortened so
+// that the motor heats within a test): the winding within 3 K, the magnet within 5 K, at the end.
+TEST(Thermal, TemperaturesFollowTheSimulatorsThermalModel) {
+  Scenario s = test_helpers::scenario("wc1_drive.yaml");
+  s.duration = 1.5;
+  s.thermal.enabled = true;
+  s.thermal.winding_capacity = 3.0;   // tau_w about 0.5 s; about 350 W of copper loss: about +60 K
+  s.thermal.winding_to_ambient = 0.17;
+  s.thermal.winding_to_magnet = 5.0;
+  s.thermal.magnet_capacity = 2.0;    // tau_m about 3 s
+  s.thermal.magnet_to_ambient = 1.5;
+  s.thermal.magnet_loss_coefficient = 2e-3;  // 22 W at 1000 rpm
+  const auto data = test_helpers::run(s);
+  IdentifierConfig c;
+  c.thermal.enabled = true;
+  c.thermal.reference_temperature = 20.0;
+  c.thermal.R_s_at_reference = s.motor.R_s;
+  c.thermal.psi_f_at_reference = s.motor.psi_f;
+  for (const char* method : {"fbdapso", "rls"}) {
+    const Estimate e = identify(samplesOf(data), method, c);
+    EXPECT_GT(data.back().winding_temperature, 40.0);  // it did heat up
+    EXPECT_NEAR(e.winding_temperature.value, data.back().winding_temperature, 3.0) << method << " " << e.reason[kRs];
+    EXPECT_NEAR(e.magnet_temperature.value, data.back().magnet_temperature, 5.0) << method << " " << e.reason[kPsiF];
+  }
+}

@@ -285,3 +285,30 @@ TEST(RealDrive, EncoderQuantisesTheAngleAndEstimatesTheSpeed) {
     EXPECT_NEAR(c - std::floor(c), 0.5, 1e-6) << k;
   }
 }
+
+// The thermal model: with the magnets decoupled the winding settles where the copper loss equals
+// the loss to ambient, T = T_a + R_wa 1.5 R_s(T) |i|^2, with R_s(T) = R_ref (1 + alpha (T - T_ref)).
+TEST(RealDrive, WindingTemperatureSettlesWhereCopperLossMeetsTheLossToAmbient) {
+  Scenario s = realDriveBase();
+  s.duration = 1.2;
+  s.thermal.enabled = true;
+  s.thermal.winding_capacity = 0.7;      // tau about 0.1 s, to settle within the run
+  s.thermal.winding_to_ambient = 0.15;   // about 350 W of copper loss: about +60 K
+  s.thermal.winding_to_magnet = 1e9;     // decoupled
+  const auto d = run(s);
+  double i2 = 0;
+  int n = 0;
+  for (const auto& x : d)
+    if (x.sample.t > 0.9) {
+      i2 += x.i_d_true * x.i_d_true + x.i_q_true * x.i_q_true;
+      ++n;
+    }
+  i2 /= n;
+  const double a = s.thermal.copper_coefficient, Rref = s.motor.R_s, Ra = s.thermal.winding_to_ambient;
+  // T - 20 = Ra 1.5 Rref (1 + a (T - 20)) i2  =>  T - 20 = k / (1 - k a), k = Ra 1.5 Rref i2
+  const double k = Ra * 1.5 * Rref * i2;
+  const double expected = 20.0 + k / (1.0 - k * a);
+  EXPECT_NEAR(d.back().winding_temperature, expected, 0.02 * (expected - 20.0));
+  EXPECT_NEAR(d.back().truth[kRs], Rref * (1 + a * (d.back().winding_temperature - 20.0)), 1e-3 * Rref);
+  EXPECT_NEAR(d.back().magnet_temperature, 20.0, 0.5);
+}

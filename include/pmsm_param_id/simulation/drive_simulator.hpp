@@ -2,6 +2,7 @@
 // current loops, voltage limited by the DC bus, plant integrated by RK4 under zero-order hold.
 #pragma once
 #include <cstdint>
+#include <cmath>
 #include <random>
 
 #include "pmsm_param_id/model/motor_model.hpp"
@@ -22,6 +23,8 @@ struct SimulatedSample {
   double u_d_applied = 0.0;    ///< d-axis voltage the motor received, mean over the period [V]
   double u_q_applied = 0.0;    ///< [V]
   double inverter_error_voltage = 0.0;  ///< pole-voltage error amplitude V_dc t_dead f_sw + drop [V]
+  double winding_temperature = NAN;     ///< true winding temperature [degC] (thermal model only)
+  double magnet_temperature = NAN;      ///< true magnet temperature [degC] (thermal model only)
 };
 
 class DriveSimulator {
@@ -52,6 +55,7 @@ class DriveSimulator {
   std::normal_distribution<double> noise_{0.0, 1.0};
   // controller state
   double speed_integral_ = 0.0;  // i_q reference integral part [A]
+  double winding_temperature_ = 0.0, magnet_temperature_ = 0.0;  // thermal model state [degC]
   double encoder_previous_ = 0.0;  // last measured mechanical angle [rad]
   double speed_estimate_ = 0.0;    // filtered mechanical speed from the encoder [rad/s]
   // computation delay: the reference computed at the previous sample and its conversion angle

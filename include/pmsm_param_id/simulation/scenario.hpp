@@ -36,6 +36,24 @@ struct InverterSettings {
   bool active() const { return dead_time > 0 || device_drop > 0 || stationary_hold || computation_delay > 0 || dc_ripple > 0; }
 };
 
+/// First-order thermal models of winding and magnets (off by default): R_s and psi_f follow them.
+///   C_w dT_w/dt = 1.5 R_s(T_w) |i|^2 - (T_w - T_a)/R_wa - (T_w - T_m)/R_wm
+///   C_m dT_m/dt = k_m omega_m^2 + (T_w - T_m)/R_wm - (T_m - T_a)/R_ma
+///   R_s = R_s,ref (1 + alpha (T_w - T_ref)),  psi_f = psi_f,ref (1 + beta (T_m - T_ref))
+struct ThermalModelSettings {
+  bool enabled = false;
+  double reference_temperature = 20.0;   ///< the motor block's R_s and psi_f hold here [degC]
+  double ambient_temperature = 20.0;     ///< [degC]; also the initial temperature of both
+  double winding_capacity = 500.0;       ///< C_w [J/K]
+  double winding_to_ambient = 0.5;       ///< R_wa [K/W]
+  double winding_to_magnet = 1.0;        ///< R_wm [K/W]
+  double magnet_capacity = 1000.0;       ///< C_m [J/K]
+  double magnet_to_ambient = 1.0;        ///< R_ma [K/W]
+  double magnet_loss_coefficient = 0.0;  ///< k_m [W s^2/rad^2] (eddy losses grow with speed squared)
+  double copper_coefficient = 3.93e-3;   ///< alpha [1/K]
+  double magnet_coefficient = -1.2e-3;   ///< beta [1/K] (NdFeB)
+};
+
 struct SensorSettings {
   double current_noise_sigma = 0.0;  ///< white Gaussian noise on each measured current [A]
   int adc_bits = 0;                  ///< quantisation of measured currents; 0 = none
@@ -52,6 +70,7 @@ struct Scenario {
   MotorParameters motor;
   DriveSettings drive;
   InverterSettings inverter;
+  ThermalModelSettings thermal;
   SensorSettings sensors;
   double duration = 0.5;  ///< [s]
   uint64_t seed = 1;

@@ -8,6 +8,7 @@
 namespace pmsm_param_id {
 
 DriveSimulator::DriveSimulator(const Scenario& scenario) : scenario_(scenario), rng_(scenario.seed) {
+  winding_temperature_ = magnet_temperature_ = scenario_.thermal.ambient_temperature;
   const MotorParameters& m = scenario_.motor;
   const double Ts = scenario_.drive.sample_period;
   sample_count_ = static_cast<std::uint64_t>(std::floor(scenario_.duration / Ts + 1e-9));
@@ -31,6 +32,11 @@ MotorParameters DriveSimulator::trueMotorAt(double t) const {
   MotorParameters m = scenario_.motor;
   m.R_s *= scenario_.R_s_scale(t);
   m.psi_f *= scenario_.psi_f_scale(t);
+  const ThermalModelSettings& th = scenario_.thermal;
+  if (th.enabled) {  // the temperatures of the present sample
+    m.R_s *= 1.0 + th.copper_coefficient * (winding_temperature_ - th.reference_temperature);
+    m.psi_f *= 1.0 + th.magnet_coefficient * (magnet_temperature_ - th.reference_temperature);
+  }
   return m;
 }
 
@@ -191,6 +197,20 @@ SimulatedSample DriveSimulator::step() {
   out.u_d_applied = applied_d;
   out.u_q_applied = applied_q;
   out.inverter_error_voltage = v_err;
+  const ThermalModelSettings& th = s.thermal;
+  if (th.enabled) {  // explicit Euler over the period: thermal time constants are seconds to minutes
+    out.winding_temperature = winding_temperature_;
+    out.magnet_temperature = magnet_temperature_;
+    const double copper_loss = 1.5 * plant.R_s * (x_.i_d * x_.i_d + x_.i_q * x_.i_q);
+    const double magnet_loss = th.magnet_loss_coefficient * x_.omega_m * x_.omega_m;
+    const double to_magnet = (winding_temperature_ - magnet_temperature_) / th.winding_to_magnet;
+    const double dTw = (copper_loss - (winding_temperature_ - th.ambient_temperature) / th.winding_to_ambient - to_magnet) /
+                       th.winding_capacity;
+    const double dTm = (magnet_loss + to_magnet - (magnet_temperature_ - th.ambient_temperature) / th.magnet_to_ambient) /
+                       th.magnet_capacity;
+    winding_temperature_ += Ts * dTw;
+    magnet_temperature_ += Ts * dTm;
+  }
   ++k_;
   return out;
 }

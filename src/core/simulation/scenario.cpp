@@ -67,6 +67,22 @@ Scenario loadScenario(const std::string& path) {
   }
   s.sensors.encoder_lines = static_cast<int>(y.integer("sensors.encoder_lines", 0, 0, 1 << 24));
   s.sensors.speed_filter_hz = y.positive("sensors.speed_filter_hz", s.sensors.speed_filter_hz);
+  if (y.has("thermal")) {
+    ThermalModelSettings& th = s.thermal;
+    th.enabled = true;
+    th.reference_temperature = y.number("thermal.reference_temperature", th.reference_temperature);
+    th.ambient_temperature = y.number("thermal.ambient_temperature", th.ambient_temperature);
+    th.winding_capacity = y.positive("thermal.winding_capacity", th.winding_capacity);
+    th.winding_to_ambient = y.positive("thermal.winding_to_ambient", th.winding_to_ambient);
+    th.winding_to_magnet = y.positive("thermal.winding_to_magnet", th.winding_to_magnet);
+    th.magnet_capacity = y.positive("thermal.magnet_capacity", th.magnet_capacity);
+    th.magnet_to_ambient = y.positive("thermal.magnet_to_ambient", th.magnet_to_ambient);
+    th.magnet_loss_coefficient = y.number("thermal.magnet_loss_coefficient", th.magnet_loss_coefficient);
+    if (th.magnet_loss_coefficient < 0) y.fail("thermal.magnet_loss_coefficient", "must be >= 0");
+    th.copper_coefficient = y.positive("thermal.copper_coefficient", th.copper_coefficient);
+    th.magnet_coefficient = y.number("thermal.magnet_coefficient", th.magnet_coefficient);
+    if (!(th.magnet_coefficient < 0)) y.fail("thermal.magnet_coefficient", "must be < 0 [1/K]");
+  }
   s.duration = y.positive("run.duration");
   if (s.duration / s.drive.sample_period > 1e9) y.fail("run.duration", "more than 1e9 samples");
   const long seed = y.integer("run.seed", 1, 0, 1L << 53);
