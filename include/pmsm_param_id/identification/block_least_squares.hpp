@@ -36,9 +36,6 @@ struct LinearBlockModel {
   static const LinearBlockModel& delay();        ///< + {a}: voltage delay [samples]
   static const LinearBlockModel& inverter();     ///< + {V}: inverter voltage along the current [V]
   static const LinearBlockModel& inverterWide(); ///< the same with twice the zero-crossing width
-  /// + {V_1, V_2}: the error as V_1 s(width) + V_2 s(2 width), V = V_1 + V_2: a zero crossing of
-  /// unknown width between the two.
-  static const LinearBlockModel& inverterTwoWidths();
 };
 
 struct BlockFit {

@@ -73,8 +73,9 @@ using ProductD = Eigen::Matrix<double, kBlockSizeD, kBlockSizeD>;
 using ProductQ = Eigen::Matrix<double, kBlockSizeQ, kBlockSizeQ>;
 
 /// The inverter error shape s of a sample (see the header comment): from the angle when the sample
-/// has it, else (4/pi) i/|i|. Unitless, |s| ~ 1.
-void inverterShape(const Sample& s, double& shape_d, double& shape_q);
+/// has it, else (4/pi) i/|i|. Unitless, |s| ~ 1. With the angle, `phase` (if given) receives the
+/// phase currents a, b, c.
+void inverterShape(const Sample& s, double& shape_d, double& shape_q, std::array<double, 3>* phase = nullptr);
 
 /// The sums of one window as the solvers need them (means of z z^T, the effective block count).
 struct WindowSums {

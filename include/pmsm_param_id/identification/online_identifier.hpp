@@ -110,6 +110,8 @@ class OnlineIdentifier {
   SearchBox box_;
 
  private:
+  /// Checks the step from the last used sample (too close: skipped; too long: a gap), then uses it.
+  SampleStatus admit(const Sample& s, bool check_step, SampleStatus status);
   SampleStatus processTimed(const Sample& s, SampleStatus status);
   bool tryStart();
   void useInverterVoltage(const FitCheck& fit);
@@ -127,7 +129,6 @@ class OnlineIdentifier {
   bool have_watched_ = false;
   mutable std::uint64_t fit_blocks_ = ~0ull;  // block count of the cached fit
   mutable FitCheck fit_cache_;
-  mutable ParameterVector fit_start_{};
   mutable double learned_R_reference_ = 0.0, learned_psi_reference_ = 0.0;  // thermal references learnt at the start
 };
 

@@ -37,47 +37,49 @@ bool fitsAtNoise(double ms, double noise, double floor2, double max_ratio) { ret
 // when no alternative is significant.
 constexpr double kSignificance = 5.0;
 
-struct SpeedScaleTest {
+// Speed or time unit: the inductances in the speed terms free against those in the Di terms.
+// Their ratio c is 1 when the units are right; measured once per window, judged per use.
+struct SpeedScale {
   BlockFit fit;
-  double scale = std::numeric_limits<double>::quiet_NaN();  // c, NaN when undetermined
-  bool significant = false;
-  bool verified = false;  // the data determine the scale to 3 % (q-axis current steps seen)
-  std::string text;
+  double c = std::numeric_limits<double>::quiet_NaN();      // speed-term L_q / Di-term L_q
+  double c_std = std::numeric_limits<double>::infinity();  // its standard deviation
+  double scale() const { return std::isfinite(c_std) ? c : std::numeric_limits<double>::quiet_NaN(); }
+  bool verified() const { return std::isfinite(c_std) && c_std < 0.03 * c; }  // q-axis current steps seen
 };
 
-// Speed or time unit: the inductances in the speed terms free against those in the Di terms.
-SpeedScaleTest speedScaleTest(const WindowSums& window, const AssessmentSettings& a, const FitCheck& fit,
-                              double min_log_ratio = 0.06) {
-  SpeedScaleTest out;
+SpeedScale measureSpeedScale(const WindowSums& window, const AssessmentSettings& a, const FitCheck& fit) {
+  SpeedScale out;
   Eigen::VectorXd s(6);
   s << fit.optimum[kRs], fit.optimum[kLd], fit.optimum[kLq], fit.optimum[kPsiF], fit.optimum[kLq], fit.optimum[kLd];
-  const BlockFit f = BlockLeastSquares::fit(window, LinearBlockModel::speedScale(), s, {}, a.variance_inflation);
-  out.fit = f;
-  const double c = f.beta(4) / f.beta(kLq);  // speed-term L_q / Di-term L_q
-  const double c_std = c * std::hypot(f.standard_deviation(4) / f.beta(4), f.standard_deviation(kLq) / f.beta(kLq));
-  out.verified = std::isfinite(c_std) && c_std < 0.03 * c;
-  if (std::isfinite(c_std)) out.scale = c;
-  // Relevance: 6 %, above the 3.3 % spread of the long-window ratio measured on correct data (30 seeds
-  // of each shipped motor); a unit error is a factor of 2 or more (rpm with 9-11 pole pairs aside).
-  // c is a scale factor: tested in log space, |ln c| against the relative std of c.
-  out.significant = f.ok && std::isfinite(c) && c > 0 && std::abs(std::log(c)) > min_log_ratio &&
-                    std::abs(std::log(c)) > kSignificance * c_std / c;
-  if (!out.significant) return out;
+  out.fit = BlockLeastSquares::fit(window, LinearBlockModel::speedScale(), s, {}, a.variance_inflation);
+  const BlockFit& f = out.fit;
+  out.c = f.beta(4) / f.beta(kLq);
+  out.c_std = out.c * std::hypot(f.standard_deviation(4) / f.beta(4), f.standard_deviation(kLq) / f.beta(kLq));
+  return out;
+}
+
+// The likely unit error when c is significantly away from 1, else "". Relevance min_log_ratio:
+// 6 % for the long window, above the 3.3 % spread of its ratio measured on correct data (30 seeds of
+// each shipped motor); a unit error is a factor of 2 or more (rpm with 9-11 pole pairs aside).
+// c is a scale factor: tested in log space, |ln c| against the relative std of c.
+std::string unitCause(const SpeedScale& m, double min_log_ratio) {
+  const double c = m.c;
+  const bool significant = m.fit.ok && std::isfinite(c) && c > 0 && std::abs(std::log(c)) > min_log_ratio &&
+                           std::abs(std::log(c)) > kSignificance * m.c_std / c;
+  if (!significant) return "";
   const double rpm_pole_pairs = c / (2.0 * M_PI / 60.0);
   if (c > 1.5 && std::abs(c - std::round(c)) < 0.1 * c)
-    out.text = format("omega_e looks like mechanical speed: the speed terms fit %.3g times the current-step terms "
-                      "(pole pairs about %.0f?); log omega_e = pole pairs x mechanical speed [rad/s]", c, std::round(c));
-  else if (rpm_pole_pairs >= 0.9 && std::abs(rpm_pole_pairs - std::round(rpm_pole_pairs)) < 0.05 * rpm_pole_pairs)
-    out.text = format("omega_e looks like rpm: the speed terms fit %.3g times the current-step terms (= 2 pi / 60 x "
-                      "%.0f pole pairs); log the electrical speed in rad/s", c, std::round(rpm_pole_pairs));
-  else if (c > 1.0 / 3000 && c < 1.0 / 300)
-    out.text = format("time looks like ms, not s: the speed terms fit %.3g times the current-step terms", c);
-  else if (c > 1.0 / 3e6 && c < 1.0 / 3e5)
-    out.text = format("time looks like us, not s: the speed terms fit %.3g times the current-step terms", c);
-  else
-    out.text = format("the speed terms fit %.3g times the current-step terms: check the unit of omega_e "
-                      "(electrical rad/s) and of time (s)", c);
-  return out;
+    return format("omega_e looks like mechanical speed: the speed terms fit %.3g times the current-step terms "
+                  "(pole pairs about %.0f?); log omega_e = pole pairs x mechanical speed [rad/s]", c, std::round(c));
+  if (rpm_pole_pairs >= 0.9 && std::abs(rpm_pole_pairs - std::round(rpm_pole_pairs)) < 0.05 * rpm_pole_pairs)
+    return format("omega_e looks like rpm: the speed terms fit %.3g times the current-step terms (= 2 pi / 60 x "
+                  "%.0f pole pairs); log the electrical speed in rad/s", c, std::round(rpm_pole_pairs));
+  if (c > 1.0 / 3000 && c < 1.0 / 300)
+    return format("time looks like ms, not s: the speed terms fit %.3g times the current-step terms", c);
+  if (c > 1.0 / 3e6 && c < 1.0 / 3e5)
+    return format("time looks like us, not s: the speed terms fit %.3g times the current-step terms", c);
+  return format("the speed terms fit %.3g times the current-step terms: check the unit of omega_e "
+                "(electrical rad/s) and of time (s)", c);
 }
 
 // The window with the reference voltages corrected by a known inverter voltage: U <- U - V int(s).
@@ -94,7 +96,8 @@ WindowSums compensated(WindowSums w, double V) {
   return w;
 }
 
-std::string misspecification(const WindowSums& window, const AssessmentSettings& a, const FitCheck& fit) {
+std::string misspecification(const WindowSums& window, const AssessmentSettings& a, const FitCheck& fit,
+                             const SpeedScale& speed_scale) {
   Eigen::VectorXd start4(4);
   for (int p = 0; p < kParameterCount; ++p) start4(p) = fit.optimum[p];
   std::string best;
@@ -111,8 +114,8 @@ std::string misspecification(const WindowSums& window, const AssessmentSettings&
   // speed scale only names the cause of a fit that already failed; the long window tests it.
   if (!fit.consistent) {
     // Only a factor beyond 2.5 names a unit here (the bias reached 0.5 on correct data).
-    const SpeedScaleTest t = speedScaleTest(window, a, fit, std::log(2.5));
-    consider(t.fit, t.significant, t.text);
+    const std::string text = unitCause(speed_scale, std::log(2.5));
+    consider(speed_scale.fit, !text.empty(), text);
   }
   // A voltage that acts a sample later or earlier than declared.
   {
@@ -161,7 +164,8 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   for (int p = 0; p < kParameterCount; ++p) s(p) = start[p];
   if (estimate_inverter) s(4) = inverter_start;
   const LinearBlockModel& model = estimate_inverter ? LinearBlockModel::inverter() : LinearBlockModel::paper();
-  const BlockFit f = BlockLeastSquares::fit(stats, model, s, {}, a.variance_inflation);
+  const WindowSums window = stats.window();
+  const BlockFit f = BlockLeastSquares::fit(window, model, s, {}, a.variance_inflation);
   if (!f.ok) return out;
   out.available = true;
   if (estimate_inverter) {
@@ -170,7 +174,7 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     out.inverter_relative_std = f.standard_deviation(4) / std::abs(f.beta(4));
     // Model sensitivity: the same fit with twice the zero-crossing width. The difference is part
     // of the stated uncertainty (the true shape of the crossing is not known).
-    const BlockFit wide = BlockLeastSquares::fit(stats, LinearBlockModel::inverterWide(), f.beta, {}, a.variance_inflation);
+    const BlockFit wide = BlockLeastSquares::fit(window, LinearBlockModel::inverterWide(), f.beta, {}, a.variance_inflation);
     if (wide.ok)
       for (int p = 0; p < 5; ++p) {
         const double d = std::abs(wide.beta(p) - f.beta(p)) / std::abs(f.beta(p));
@@ -187,9 +191,9 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   out.noise_std_q = std::sqrt(0.5 * f.noise_variance_q);
   out.optimum_fitness = f.fitness();
   // Floor: a residual below fit_floor_relative of the RMS current is a fit even without noise.
-  const ProductD Sd = stats.meanProductD();
-  const ProductQ Sq = stats.meanProductQ();
-  const double Tb = stats.blockDuration();
+  const ProductD& Sd = window.mean_d;
+  const ProductQ& Sq = window.mean_q;
+  const double Tb = window.block_duration;
   const double current_ms = (Sd(kIntegralId, kIntegralId) + Sq(kIntegralIq, kIntegralIq)) / (Tb * Tb);
   const double floor2 = a.fit_floor_relative * a.fit_floor_relative * current_ms;
   // Between samples the currents are not straight lines: at speed the applied voltage turns by
@@ -210,22 +214,23 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
                    fitsAtNoise(f.mean_square_q, f.noise_variance_q, floor2, a.max_fit_ratio);
   if (diagnose_misfit) {
     const double V = out.inverter_modelled ? out.inverter_voltage : 0.0;
-    const WindowSums window = compensated(stats.window(), V);
-    std::string cause = misspecification(window, a, out);
+    const WindowSums corrected = compensated(window, V);
+    const SpeedScale short_scale = measureSpeedScale(corrected, a, out);
+    std::string cause = misspecification(corrected, a, out, short_scale);
     // The unit of the speed shows only where the window holds q-axis current steps; the fitness
     // window may have forgotten them (a start-up, a load step), the long window has not.
     WindowSums long_window = compensated(stats.longWindow(), V);
-    const SpeedScaleTest short_test = speedScaleTest(window, a, out);
-    out.speed_unit_verified = short_test.verified;
-    out.speed_scale_short = short_test.scale;
+    out.speed_unit_verified = short_scale.verified();
+    out.speed_scale_short = short_scale.scale();
     if (long_window.hasBlocks()) {
       long_window.noise_variance_d = 2.0 * f.noise_variance_d;  // a difference of two independent blocks
       long_window.noise_variance_q = 2.0 * f.noise_variance_q;
-      const SpeedScaleTest t = speedScaleTest(long_window, a, out);
-      out.speed_unit_verified = out.speed_unit_verified || t.verified;
-      out.speed_scale_long = t.scale;
+      const SpeedScale long_scale = measureSpeedScale(long_window, a, out);
+      out.speed_unit_verified = out.speed_unit_verified || long_scale.verified();
+      out.speed_scale_long = long_scale.scale();
       // A unit error explains the misfit of every other alternative too: it names the cause first.
-      if (t.significant) cause = t.text + " (over the long check window)";
+      const std::string unit = unitCause(long_scale, 0.06);
+      if (!unit.empty()) cause = unit + " (over the long check window)";
     }
     if (!cause.empty()) {
       out.consistent = false;

@@ -104,21 +104,6 @@ const LinearBlockModel& LinearBlockModel::inverterWide() {
   return model;
 }
 
-const LinearBlockModel& LinearBlockModel::inverterTwoWidths() {
-  static const LinearBlockModel model = [] {
-    LinearBlockModel m = base(2);
-    m.name = "inverter_two_widths";
-    m.parameter_names.push_back("inverter_voltage");
-    m.parameter_names.push_back("inverter_voltage_wide");
-    m.G_d(kIntegralInverterD, 4) = 1.0;
-    m.G_q(kIntegralInverterQ, 4) = 1.0;
-    m.G_d(kIntegralInverterWideD, 5) = 1.0;
-    m.G_q(kIntegralInverterWideQ, 5) = 1.0;
-    return m;
-  }();
-  return model;
-}
-
 void BlockLeastSquares::residuals(const WindowSums& stats, const LinearBlockModel& model,
                                   const Eigen::VectorXd& beta, double& ms_d, double& ms_q, double& diff_ms_d,
                                   double& diff_ms_q) {

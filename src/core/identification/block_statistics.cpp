@@ -65,13 +65,16 @@ namespace {
 inline double sign(double x) { return x > 0 ? 1.0 : (x < 0 ? -1.0 : 0.0); }
 }  // namespace
 
-void inverterShape(const Sample& s, double& shape_d, double& shape_q) {
+void inverterShape(const Sample& s, double& shape_d, double& shape_q, std::array<double, 3>* phase) {
   if (std::isfinite(s.theta_e)) {
-    // Phase currents from the measured d-q currents and the angle, then the d-q image of their signs.
-    const std::array<double, 3> i = phaseFromDq(s.i_d, s.i_q, s.theta_e);
-    const Vec2 shape = rotate(clarke(sign(i[0]), sign(i[1]), sign(i[2])), -s.theta_e);
-    shape_d = shape.x;
-    shape_q = shape.y;
+    // Phase currents from the measured d-q currents and the angle, then the d-q image of their
+    // signs: one cos/sin for both.
+    const double cs = std::cos(s.theta_e), sn = std::sin(s.theta_e);
+    const std::array<double, 3> i = inverseClarke({cs * s.i_d - sn * s.i_q, sn * s.i_d + cs * s.i_q});
+    const Vec2 v = clarke(sign(i[0]), sign(i[1]), sign(i[2]));
+    shape_d = cs * v.x + sn * v.y;
+    shape_q = -sn * v.x + cs * v.y;
+    if (phase) *phase = i;
     return;
   }
   const double magnitude2 = s.i_d * s.i_d + s.i_q * s.i_q;
@@ -135,15 +138,7 @@ bool BlockStatistics::add(const Sample& s) {
   c.u_d = s.u_d;
   c.u_q = s.u_q;
   c.theta_e = s.theta_e;
-  if (std::isfinite(s.theta_e)) {  // one cos/sin per sample for the phase currents and the shape
-    const double cs = std::cos(s.theta_e), sn = std::sin(s.theta_e);
-    c.phase = inverseClarke({cs * s.i_d - sn * s.i_q, sn * s.i_d + cs * s.i_q});
-    const Vec2 v = clarke(sign(c.phase[0]), sign(c.phase[1]), sign(c.phase[2]));
-    c.shape_d = cs * v.x + sn * v.y;
-    c.shape_q = -sn * v.x + cs * v.y;
-  } else {
-    inverterShape(s, c.shape_d, c.shape_q);
-  }
+  inverterShape(s, c.shape_d, c.shape_q, &c.phase);  // the phase currents too, when the angle is known
   const std::size_t cap = ring_.size();
   if (count_ > 0) {
     const Cumulative& p = ring_[(head_ + count_ - 1) % cap];

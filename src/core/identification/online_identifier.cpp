@@ -89,21 +89,7 @@ SampleStatus OnlineIdentifier::process(const Sample& s) {
         stats_.configure(period_.nominal());
         std::vector<Sample> held;
         held.swap(held_);
-        bool first = true;
-        for (const Sample& h : held) {
-          if (!first && h.t - last_t_ < 0.25 * period_.nominal()) {
-            ++counters_.skipped_too_close;
-            continue;
-          }
-          if (!first && h.t - last_t_ > config_.time.max_gap_periods * period_.nominal()) {
-            ++counters_.gaps;
-            broken_ = true;
-            stats_.breakContinuity();
-          }
-          processTimed(h, SampleStatus::Used);
-          last_t_ = h.t;
-          first = false;
-        }
+        for (std::size_t k = 0; k < held.size(); ++k) admit(held[k], k > 0, SampleStatus::Used);
       } else {  // the rate changed: blocks of the new length from here on
         ++counters_.period_changes;
         stats_.configure(period_.nominal());
@@ -119,7 +105,11 @@ SampleStatus OnlineIdentifier::process(const Sample& s) {
     return status;
   }
   if (!stats_.configured()) stats_.configure(period_.nominal());
-  if (have_last_ && status == SampleStatus::Used) {
+  return admit(s, have_last_ && status == SampleStatus::Used, status);
+}
+
+SampleStatus OnlineIdentifier::admit(const Sample& s, bool check_step, SampleStatus status) {
+  if (check_step) {  // the step from the last used sample, against the nominal period
     const double dt = s.t - last_t_;
     if (dt < 0.25 * period_.nominal()) {
       ++counters_.skipped_too_close;

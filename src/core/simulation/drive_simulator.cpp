@@ -89,7 +89,7 @@ SimulatedSample DriveSimulator::step() {
   // Park transform with the measured angle, as the drive computes them.
   double i_d = 0, i_q = 0;
   if (s.sensors.phase_currents) {
-    const std::array<double, 3> abc = inverseClarke(rotate({x_.i_d, x_.i_q}, x_.theta_e));
+    const std::array<double, 3> abc = phaseFromDq(x_.i_d, x_.i_q, x_.theta_e);
     std::array<double, 3> m{};
     for (int k = 0; k < 3; ++k)
       m[static_cast<std::size_t>(k)] = measure(s.sensors.phase_gain[static_cast<std::size_t>(k)] * abc[static_cast<std::size_t>(k)] +
@@ -162,7 +162,7 @@ SimulatedSample DriveSimulator::step() {
   const auto applied = [&](const PlantState& x) -> Vec2 {
     Vec2 u = inv.stationary_hold ? rotate(stator, -x.theta_e) : rotate(stator, -theta_start);
     if (v_err > 0) {  // dead time and device drops: each pole voltage loses v_err against its current
-      const std::array<double, 3> abc = inverseClarke(rotate({x.i_d, x.i_q}, x.theta_e));
+      const std::array<double, 3> abc = phaseFromDq(x.i_d, x.i_q, x.theta_e);
       const Vec2 e = rotate(clarke(std::tanh(abc[0] / i0), std::tanh(abc[1] / i0), std::tanh(abc[2] / i0)), -x.theta_e);
       u.x -= v_err * e.x;
       u.y -= v_err * e.y;
