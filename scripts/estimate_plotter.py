@@ -4,6 +4,9 @@
 rviz has no time-series display; this node draws one as a visualization_msgs/MarkerArray of
 LINE_STRIPs (x = time, y = value) with axes, tick labels, a legend and the current value and error,
 in the fixed frame "plot" (no TF needed), for rviz/monitor.rviz's top-down orthographic view.
+Beside the fitness: the winding and magnet temperatures (thick: winding, thin: magnet; black:
+truth) when the identifiers carry them (a thermal: block), and the condition monitor's alarms
+(~namespace/METHOD/events): every active alarm in red, or "no alarm active".
 
 Parameters:
   ~methods (list of str)   methods to draw (default fbdapso, sapso, pso, ekf, rls)
@@ -34,7 +37,10 @@ COLORS = {"fbdapso": (0.84, 0.15, 0.16), "sapso": (1.0, 0.5, 0.05), "pso": (0.17
 GREY = (0.6, 0.6, 0.6)
 PANEL_W, PANEL_H = 10.0, 4.0
 # panel origins (lower-left corners): 2 x 2 parameters, fitness below
-ORIGINS = {"R_s": (0.0, 11.0), "L_d": (17.0, 11.0), "L_q": (0.0, 5.5), "psi_f": (17.0, 5.5), "fitness": (0.0, 0.0)}
+ORIGINS = {"R_s": (0.0, 11.0), "L_d": (17.0, 11.0), "L_q": (0.0, 5.5), "psi_f": (17.0, 5.5), "fitness": (0.0, 0.0),
+           "temperature": (17.0, 0.0)}
+ALARM_RED = (0.85, 0.0, 0.0)
+OK_GREEN = (0.0, 0.5, 0.0)
 MAX_POINTS = 250   # per line strip: software-GL rviz falls behind on ~20k points per redraw
 LEGEND_SIZE = 0.3  # text height; TEXT_VIEW_FACING is centred, so legends are placed by half their width
 
@@ -48,8 +54,11 @@ class PlotState:
         self.series = {m: deque() for m in self.methods}  # (t, values, identifiable, fitness)
         self.truth = deque()                                 # (t, values)
         self.status = {}                                     # method: latest status names
+        self.temperatures = {m: deque() for m in self.methods}  # (t, winding, magnet) [degC], NaN = unknown
+        self.truth_temperatures = deque()                    # (t, winding, magnet) [degC]
+        self.active_alarms = {}                              # (method, kind): (t, text)
 
-    def add_estimate(self, method, t, values, identifiable, fitness, status=None):
+    def add_estimate(self, method, t, values, identifiable, fitness, status=None, temperatures=None):
         if method not in self.series:
             return
         if status is not None:
@@ -57,14 +66,30 @@ class PlotState:
         s = self.series[method]
         if s and t < s[-1][0]:  # stamps went backwards (bag loop): start over
             s.clear()
+            self.temperatures[method].clear()
+            self.active_alarms = {k: v for k, v in self.active_alarms.items() if k[0] != method}
         s.append((t, tuple(values), tuple(identifiable), fitness))
         self._trim(s, t)
+        if temperatures is not None:
+            self.temperatures[method].append((t,) + tuple(temperatures))
+            self._trim(self.temperatures[method], t)
 
-    def add_truth(self, t, values):
+    def add_truth(self, t, values, temperatures=None):
         if self.truth and t < self.truth[-1][0]:
             self.truth.clear()
+            self.truth_temperatures.clear()
         self.truth.append((t, tuple(values)))
         self._trim(self.truth, t)
+        if temperatures is not None:
+            self.truth_temperatures.append((t,) + tuple(temperatures))
+            self._trim(self.truth_temperatures, t)
+
+    def add_event(self, t, method, kind, raised, text):
+        """An alarm raised or cleared by a condition monitor (ConditionEvent)."""
+        if raised:
+            self.active_alarms[(method, kind)] = (t, text)
+        else:
+            self.active_alarms.pop((method, kind), None)
 
     def _trim(self, q, now):
         while len(q) > 2 and q[0][0] < now - self.window:
@@ -218,12 +243,54 @@ def build_markers(state, frame_id="plot", stamp=None):
                 strip.points.append(xy(ox, oy, t, math.log10(f), y0, y1))
         if len(strip.points) >= 2:
             arr.markers.append(strip)
+    draw_monitor(state, panel, marker, text, xy, arr)
     return arr, layout
+
+
+def finite(x):
+    return isinstance(x, float) and math.isfinite(x)
+
+
+def draw_monitor(state, panel, marker, text, xy, arr):
+    """Temperatures (when any is known) and the active alarms, right of the fitness panel."""
+    from visualization_msgs.msg import Marker
+    ox, oy = ORIGINS["temperature"]
+    series = [(m, state.temperatures[m]) for m in state.methods if state.temperatures.get(m)]
+    known = [v for _, q in series for _, w, mg in q for v in (w, mg) if finite(v)]
+    known += [v for _, w, mg in state.truth_temperatures for v in (w, mg) if finite(v)]
+    legend_row = 0
+    if known:
+        lo, hi = min(known), max(known)
+        y0, y1 = lo - 5.0 - 0.05 * (hi - lo), hi + 5.0 + 0.05 * (hi - lo)
+        panel("temperature", ox, oy, y0, y1, "temperature [degC] (thick: winding, thin: magnet)", lambda v: "%.0f" % v)
+        lines = [("truth", state.truth_temperatures, COLORS["truth"])] + [(m, q, COLORS.get(m, (0, 0, 0))) for m, q in series]
+        for name, q, color in lines:
+            for k, (part, width) in enumerate((("winding", 0.07), ("magnet", 0.03))):
+                strip = marker("temperature/%s/%s" % (name, part), Marker.LINE_STRIP, width, color)
+                for point in thin(q):
+                    if finite(point[1 + k]):
+                        strip.points.append(xy(ox, oy, point[0], point[1 + k], y0, y1))
+                if len(strip.points) >= 2:
+                    arr.markers.append(strip)
+        for name, q, color in lines:
+            if not q:
+                continue
+            w, mg = q[-1][1], q[-1][2]
+            label = "%s winding %s, magnet %s degC" % (name, "%.1f" % w if finite(w) else "n/a", "%.1f" % mg if finite(mg) else "n/a")
+            text("temperature/legend", ox + PANEL_W + 0.3 + 0.5 * 0.6 * LEGEND_SIZE * len(label),
+                 oy + PANEL_H - 0.35 - 0.5 * legend_row, label, LEGEND_SIZE, color)
+            legend_row += 1
+    alarms = sorted(state.active_alarms.items(), key=lambda kv: kv[1][0])
+    labels = ["ALARM %s %s at %.2f s: %s" % (m, kind, t, msg) for (m, kind), (t, msg) in alarms] or ["no alarm active"]
+    for label in labels[:6]:
+        text("alarms", ox + PANEL_W + 0.3 + 0.5 * 0.6 * LEGEND_SIZE * len(label), oy + PANEL_H - 0.35 - 0.5 * legend_row,
+             label, LEGEND_SIZE, ALARM_RED if alarms else OK_GREEN)
+        legend_row += 1
 
 
 def main():
     import rospy
-    from pmsm_param_id.msg import ElectricalParameters, ParameterEstimate
+    from pmsm_param_id.msg import ConditionEvent, ElectricalParameters, ParameterEstimate
     from visualization_msgs.msg import MarkerArray
 
     rospy.init_node("estimate_plotter")
@@ -245,13 +312,19 @@ def main():
 
     def on_estimate(msg):
         state.add_estimate(msg.method, seconds(msg.header.stamp), (msg.R_s, msg.L_d, msg.L_q, msg.psi_f),
-                           msg.identifiable, msg.fitness, report_status_names(msg))
+                           msg.identifiable, msg.fitness, report_status_names(msg),
+                           (msg.winding_temperature, msg.magnet_temperature))
 
     def on_truth(msg):
-        state.add_truth(seconds(msg.header.stamp), (msg.R_s, msg.L_d, msg.L_q, msg.psi_f))
+        state.add_truth(seconds(msg.header.stamp), (msg.R_s, msg.L_d, msg.L_q, msg.psi_f),
+                        (msg.winding_temperature, msg.magnet_temperature))
+
+    def on_event(msg):
+        state.add_event(seconds(msg.header.stamp), msg.method, msg.kind, msg.raised, msg.text)
 
     for m in methods:
         rospy.Subscriber("%s/%s/estimate" % (ns, m), ParameterEstimate, on_estimate, queue_size=1000)
+        rospy.Subscriber("%s/%s/events" % (ns, m), ConditionEvent, on_event, queue_size=100)
     rospy.Subscriber(rospy.get_param("~truth_topic", "/drive/true_parameters"), ElectricalParameters, on_truth,
                      queue_size=1000)
     from visualization_msgs.msg import Marker

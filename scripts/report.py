@@ -3,11 +3,13 @@
 
     report.py BAG [--out DIR] [--reference CSV] [--condition wc1|wc2|auto|none]
 
-Reads the estimates (*/estimate, pmsm_param_id/ParameterEstimate) and, when present, the true
-parameters (/drive/true_parameters) and samples (/drive/samples_batch). Writes DIR/R_s.png,
-L_d.png, L_q.png, psi_f.png (every method against truth, as the paper's Figs. 5-6, 8-9),
-DIR/fitness.png (Figs. 7 and 10) and DIR/report.md (Table 2/3 layout with the paper's numbers
-beside ours). Works on bags from demo.launch, replay.launch and csv2bag + replay.
+Reads the estimates (*/estimate, pmsm_param_id/ParameterEstimate), the condition monitor's
+events (*/events, pmsm_param_id/ConditionEvent) and, when present, the true parameters
+(/drive/true_parameters) and samples (/drive/samples_batch). Writes DIR/R_s.png, L_d.png, L_q.png,
+psi_f.png (every method against truth, as the paper's Figs. 5-6, 8-9), DIR/fitness.png (Figs. 7
+and 10), DIR/alarms.png (alarm timeline), DIR/temperatures.png (winding and magnet temperatures
+against truth, when any estimate carries one) and DIR/report.md (Table 2/3 layout with the
+paper's numbers beside ours, temperatures, every alarm). Works on bags from demo.launch, replay.launch and csv2bag + replay.
 """
 import argparse
 import bisect
@@ -28,6 +30,8 @@ class BagData:
         self.estimates = {}   # method -> list of (t, msg)
         self.truth = []       # list of (t, (R_s, L_d, L_q, psi_f)), sorted by t
         self.truth_times = [] # the t of each truth entry, for bisect
+        self.truth_temperatures = []  # list of (t, winding, magnet) [degC], NaN when unknown
+        self.events = []      # list of (t, method, kind, raised, text) from the condition monitors
         self.speeds = []      # electrical speed samples [rad/s]
         self.origin = None    # first stamp [ns]
         self.missing = []     # what the bag lacks, in words
@@ -43,8 +47,10 @@ def read_bag(path):
     with bag:
         topics = bag.get_type_and_topic_info().topics
         est_topics = [t for t, info in topics.items() if info.msg_type == "pmsm_param_id/ParameterEstimate"]
+        event_topics = set(t for t, info in topics.items() if info.msg_type == "pmsm_param_id/ConditionEvent")
         raw = []
-        for topic, msg, _ in bag.read_messages(topics=est_topics + ["/drive/true_parameters", "/drive/samples_batch"]):
+        wanted = est_topics + sorted(event_topics) + ["/drive/true_parameters", "/drive/samples_batch"]
+        for topic, msg, _ in bag.read_messages(topics=wanted):
             stamp = msg.header.stamp.to_nsec()
             data.origin = stamp if data.origin is None else min(data.origin, stamp)
             raw.append((topic, msg, stamp))
@@ -54,6 +60,10 @@ def read_bag(path):
         t = (stamp - data.origin) * 1e-9
         if topic == "/drive/true_parameters":
             data.truth.append((t, (msg.R_s, msg.L_d, msg.L_q, msg.psi_f)))
+            data.truth_temperatures.append((t, getattr(msg, "winding_temperature", float("nan")),
+                                            getattr(msg, "magnet_temperature", float("nan"))))
+        elif topic in event_topics:
+            data.events.append((t, msg.method, msg.kind, msg.raised, msg.text))
         elif topic == "/drive/samples_batch":
             data.speeds.extend(msg.omega_e[-1:])
         else:
@@ -61,6 +71,8 @@ def read_bag(path):
     for m in data.estimates.values():
         m.sort(key=lambda x: x[0])
     data.truth.sort(key=lambda x: x[0])
+    data.truth_temperatures.sort(key=lambda x: x[0])
+    data.events.sort(key=lambda x: x[0])
     data.truth_times = [t for t, _ in data.truth]
     if not data.estimates:
         data.missing.append("no estimates (no pmsm_param_id/ParameterEstimate topic)")
@@ -148,12 +160,52 @@ def summarize(data):
                "samples": last.samples_used, "skipped": last.samples_skipped, "t": t}
         row["errors"] = [100.0 * (v - p) / p for v, p in zip(row["values"], true)] if true else None
         row["recognition_time"] = recognition_time(data, trace)
+        row["temperatures"] = [(getattr(last, "winding_temperature", float("nan")),
+                                getattr(last, "winding_temperature_uncertainty", float("nan"))),
+                               (getattr(last, "magnet_temperature", float("nan")),
+                                getattr(last, "magnet_temperature_uncertainty", float("nan")))]
         out[method] = row
     return out
 
 
 def fmt(x, spec):
     return "n/a" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
+
+
+def finite(x):
+    return isinstance(x, float) and math.isfinite(x)
+
+
+def has_temperatures(data):
+    """Any estimate or truth message carries a temperature."""
+    return any(finite(w) or finite(m) for _, w, m in data.truth_temperatures) or any(
+        finite(getattr(msg, "winding_temperature", float("nan"))) or finite(getattr(msg, "magnet_temperature", float("nan")))
+        for trace in data.estimates.values() for _, msg in trace)
+
+
+def temperature_lines(data, summary, methods):
+    if not has_temperatures(data):
+        return ["Temperatures: none (the identifiers had no `thermal:` block; doc/algorithm.md section 9).", ""]
+    true_w, true_m = (data.truth_temperatures[-1][1:] if data.truth_temperatures else (float("nan"), float("nan")))
+    lines = ["Temperatures at the end [degC] (from R_s and psi_f while identified; n/a = not identified):", "",
+             "| | truth | " + " | ".join(methods) + " |", "|" + "---|" * (len(methods) + 2)]
+    for k, (name, true) in enumerate((("winding", true_w), ("magnet", true_m))):
+        cells = [name, fmt(true, ".1f")]
+        for m in methods:
+            value, unc = summary[m]["temperatures"][k]
+            cells.append("%s +- %s" % (fmt(value, ".1f"), fmt(unc, ".1f")) if finite(value) else "n/a")
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
+def alarm_lines(data):
+    if not data.events:
+        return ["Alarms: none raised by any method (condition monitor, doc/algorithm.md section 9).", ""]
+    lines = ["Alarms (condition monitor, doc/algorithm.md section 9):", "", "| t [s] | method | alarm | | what |",
+             "|---|---|---|---|---|"]
+    for t, method, kind, raised, text in data.events:
+        lines.append("| %.3f | %s | %s | %s | %s |" % (t, method, kind, "raised" if raised else "cleared", text))
+    return lines + [""]
 
 
 def write_markdown(path, bag_path, data, summary, paper, condition):
@@ -195,7 +247,11 @@ def write_markdown(path, bag_path, data, summary, paper, condition):
         causes = ["- %s: %s" % (m, summary[m]["likely_cause"]) for m in methods if summary[m]["likely_cause"]]
         if causes:
             lines += ["The model does not fit the data; likely cause:"] + causes + [""]
-    lines += ["Figures: " + ", ".join("[%s](%s.png)" % (p, p) for p in PARAMS) + ", [fitness](fitness.png)", ""]
+    lines += temperature_lines(data, summary, methods) + alarm_lines(data)
+    figures = ["[%s](%s.png)" % (p, p) for p in PARAMS] + ["[fitness](fitness.png)", "[alarms](alarms.png)"]
+    if has_temperatures(data):
+        figures.append("[temperatures](temperatures.png)")
+    lines += ["Figures: " + ", ".join(figures), ""]
     with open(path, "w") as f:
         f.write("\n".join(lines))
 
@@ -250,7 +306,79 @@ def draw(out_dir, data):
     fig.savefig(name)
     plt.close(fig)
     written.append(name)
+    written.append(draw_alarms(plt, out_dir, data))
+    if has_temperatures(data):
+        written.append(draw_temperatures(plt, out_dir, data))
     return written
+
+
+ALARM_KINDS = ["winding_over_temperature", "demagnetisation", "parameter_jump", "fast_drift"]
+ALARM_COLORS = {"winding_over_temperature": "tab:red", "demagnetisation": "tab:purple",
+                "parameter_jump": "tab:orange", "fast_drift": "tab:olive"}
+
+
+def draw_alarms(plt, out_dir, data):
+    """One row per method: a bar from each raise to its clear (or to the end of the run)."""
+    methods = [m for m in ORDER if m in data.estimates] + sorted(
+        set(m for m in data.estimates if m not in ORDER) | set(e[1] for e in data.events if e[1] not in ORDER))
+    end = max([trace[-1][0] for trace in data.estimates.values()] + [e[0] for e in data.events] + [0.0])
+    fig, ax = plt.subplots(figsize=(8, 1.2 + 0.45 * max(1, len(methods))), dpi=100)
+    drawn = set()
+    for row, m in enumerate(methods):
+        open_since = {}
+        for t, method, kind, raised, _ in data.events:
+            if method != m:
+                continue
+            if raised and kind not in open_since:
+                open_since[kind] = t
+            elif not raised and kind in open_since:
+                a = open_since.pop(kind)
+                ax.barh(row, max(t - a, end * 0.003), left=a, height=0.6, color=ALARM_COLORS.get(kind, "k"),
+                        label=None if kind in drawn else kind)
+                drawn.add(kind)
+        for kind, a in open_since.items():
+            ax.barh(row, max(end - a, end * 0.003), left=a, height=0.6, color=ALARM_COLORS.get(kind, "k"),
+                    label=None if kind in drawn else kind)
+            drawn.add(kind)
+    ax.set_yticks(range(len(methods)))
+    ax.set_yticklabels(methods)
+    ax.set_xlim(0, end if end > 0 else 1)
+    ax.set_ylim(-0.6, max(1, len(methods)) - 0.4)
+    ax.set_xlabel("time [s]")
+    ax.set_title("Alarms (condition monitor)" if data.events else "Alarms: none raised")
+    ax.grid(True, axis="x", alpha=0.3)
+    if drawn:
+        ax.legend(loc="upper left", fontsize=7)
+    fig.tight_layout()
+    name = os.path.join(out_dir, "alarms.png")
+    fig.savefig(name)
+    plt.close(fig)
+    return name
+
+
+def draw_temperatures(plt, out_dir, data):
+    fig, axes = plt.subplots(2, 1, figsize=(8, 6), dpi=100, sharex=True)
+    for k, (ax, name) in enumerate(zip(axes, ("winding", "magnet"))):
+        truth = [(t, v[k]) for t, *v in data.truth_temperatures if finite(v[k])]
+        if truth:
+            ax.plot([t for t, _ in truth], [v for _, v in truth], color="black", linewidth=2.0, label="truth")
+        for m in [m for m in ORDER if m in data.estimates] + [m for m in data.estimates if m not in ORDER]:
+            field = name + "_temperature"
+            pts = [(t, getattr(msg, field, float("nan"))) for t, msg in data.estimates[m]]
+            pts = [(t, v) for t, v in pts if finite(v)]
+            if pts:
+                ax.plot([t for t, _ in pts], [v for _, v in pts], ".", markersize=2, color=COLORS.get(m), label=m)
+        ax.set_ylabel("%s [degC]" % name)
+        ax.grid(True, alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc="upper left", fontsize=8)
+    axes[0].set_title("Temperatures from R_s and psi_f (only while identified) against truth")
+    axes[1].set_xlabel("time [s]")
+    fig.tight_layout()
+    name = os.path.join(out_dir, "temperatures.png")
+    fig.savefig(name)
+    plt.close(fig)
+    return name
 
 
 def main(argv=None):

@@ -85,11 +85,14 @@ int main(int argc, char** argv) {
     msg.sample_period = Ts;
     msg.first_index = sim.sampleIndex();
     ParameterVector truth{};
+    double winding_temperature = NAN, magnet_temperature = NAN;
     for (int k = 0; k < batch && !sim.done(); ++k) {
       const SimulatedSample s = sim.step();
       if (k == 0) {
         msg.header.stamp = start + ros::Duration(static_cast<double>(msg.first_index) * Ts);
         truth = s.truth;
+        winding_temperature = s.winding_temperature;
+        magnet_temperature = s.magnet_temperature;
       }
       msg.u_d.push_back(s.sample.u_d);
       msg.u_q.push_back(s.sample.u_q);
@@ -119,7 +122,7 @@ int main(int argc, char** argv) {
     published += msg.u_d.size();
     for (const DriveSample& one : singles) pub_sample.publish(one);
     pub_batch.publish(msg);
-    pub_truth.publish(toMessage(truth, msg.header.stamp));
+    pub_truth.publish(toMessage(truth, msg.header.stamp, winding_temperature, magnet_temperature));
     if (publish_clock) {
       rosgraph_msgs::Clock clock;
       clock.clock = start + ros::Duration(static_cast<double>(sim.sampleIndex()) * Ts);

@@ -129,8 +129,11 @@ inline ParameterEstimate toMessage(const Estimate& e, const ros::Time& stamp, co
   return m;
 }
 
-inline ElectricalParameters toMessage(const ParameterVector& p, const ros::Time& stamp) {
+inline ElectricalParameters toMessage(const ParameterVector& p, const ros::Time& stamp,
+                                      double winding_temperature = NAN, double magnet_temperature = NAN) {
   ElectricalParameters m;
+  m.winding_temperature = winding_temperature;
+  m.magnet_temperature = magnet_temperature;
   m.header.stamp = stamp;
   m.R_s = p[kRs];
   m.L_d = p[kLd];

@@ -17,6 +17,7 @@
 #include "pmsm_param_id/io/log_format.hpp"
 #include "pmsm_param_id/simulation/drive_simulator.hpp"
 #include "pmsm_param_id/identification/metrics.hpp"
+#include "pmsm_param_id/identification/monitor.hpp"
 #include "pmsm_param_id/identification/online_identifier.hpp"
 #include "pmsm_param_id/io/sample_csv.hpp"
 #include "pmsm_param_id/simulation/scenario.hpp"
@@ -164,7 +165,15 @@ int runSimulate(const std::string& scenario_path, const std::string& csv, long s
 
 // ---------------------------------------------------------------------------------------------
 // bench
+/// What the condition monitor made of one run (bench --monitor).
+struct MonitorResult {
+  std::vector<double> winding_error, magnet_error;  ///< |estimated - true| [K] whenever reported
+  int estimates = 0, winding_reported = 0, magnet_reported = 0;
+  std::vector<AlarmEvent> events;
+};
+
 struct RunResult {
+  MonitorResult monitor;
   std::string method;
   std::uint64_t seed = 0;
   Estimate final;
@@ -204,8 +213,11 @@ std::map<std::string, PaperRow> readPaperTable(const std::string& path, const st
   return rows;
 }
 
+/// The monitor sees an estimate every kMonitorPeriod of drive time, as a node publishing at 100 Hz.
+constexpr double kMonitorPeriod = 0.01;  // [s]
+
 RunResult runOne(const std::vector<SimulatedSample>& data, IdentifierConfig config, const std::string& method,
-                 std::uint64_t seed) {
+                 std::uint64_t seed, bool monitor = false) {
   config.method = method;
   config.seed = seed;
   auto id = makeIdentifier(config);
@@ -217,11 +229,29 @@ RunResult runOne(const std::vector<SimulatedSample>& data, IdentifierConfig conf
   const std::size_t stride = std::max<std::size_t>(1, static_cast<std::size_t>(std::lround(1e-4 / Ts)));
   trace.reserve(data.size() / stride + 1);
   double cpu = 0.0;
+  ConditionMonitor condition(config.alarms);
+  const std::size_t monitor_stride = std::max<std::size_t>(1, static_cast<std::size_t>(std::lround(kMonitorPeriod / Ts)));
   for (std::size_t k = 0; k < data.size(); ++k) {
     const auto t0 = std::chrono::steady_clock::now();
     id->process(data[k].sample);
     cpu += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     if (k % stride == 0 || k + 1 == data.size()) trace.push_back({data[k].sample.t, id->parameters(), data[k].truth});
+    if (monitor && k % monitor_stride == monitor_stride - 1) {
+      const Estimate e = id->estimate();
+      MonitorResult& m = r.monitor;
+      ++m.estimates;
+      if (std::isfinite(e.winding_temperature.value)) {
+        ++m.winding_reported;
+        if (std::isfinite(data[k].winding_temperature))
+          m.winding_error.push_back(std::abs(e.winding_temperature.value - data[k].winding_temperature));
+      }
+      if (std::isfinite(e.magnet_temperature.value)) {
+        ++m.magnet_reported;
+        if (std::isfinite(data[k].magnet_temperature))
+          m.magnet_error.push_back(std::abs(e.magnet_temperature.value - data[k].magnet_temperature));
+      }
+      for (const AlarmEvent& ev : condition.update(e)) m.events.push_back(ev);
+    }
   }
   r.final = id->estimate();
   r.truth = data.back().truth;
@@ -265,8 +295,90 @@ int confidentlyWrong(const std::vector<RunResult>& runs, int p) {
   return n;
 }
 
+/// The first time a fault profile (R_s_scale, psi_f_scale, L_d_scale, L_q_scale) leaves its initial
+/// value by more than 0.5 %; NaN when none does (a healthy run). Temperatures are not faults.
+double faultOnset(const Scenario& s) {
+  const Profile* profiles[] = {&s.R_s_scale, &s.psi_f_scale, &s.L_d_scale, &s.L_q_scale};
+  const double Ts = s.drive.sample_period;
+  for (double t = 0.0; t <= s.duration; t += Ts)
+    for (const Profile* p : profiles)
+      if (std::abs((*p)(t) / (*p)(0.0) - 1.0) > 0.005) return t;
+  return NAN;
+}
+
+double medianOrNan(std::vector<double> v) { return v.empty() ? NAN : median(std::move(v)); }
+
+/// bench --monitor: temperature errors and alarm counts per method, over seeds.
+void printMonitor(const std::vector<std::string>& methods, const std::vector<std::vector<RunResult>>& results,
+                  double onset) {
+  const int seeds = static_cast<int>(results.front().size());
+  std::printf("\nCondition monitor (an estimate every %.0f ms; temperatures need a thermal: block in the config)\n",
+              1e3 * kMonitorPeriod);
+  std::printf("%-26s", "");
+  for (const auto& m : methods) std::printf("%-24s", m.c_str());
+  const auto temperature_row = [&](const char* label, bool winding) {
+    std::printf("\n%-26s", label);
+    for (std::size_t m = 0; m < methods.size(); ++m) {
+      std::vector<double> per_seed;
+      double reported = 0, estimates = 0;
+      for (const RunResult& r : results[m]) {
+        const auto& e = winding ? r.monitor.winding_error : r.monitor.magnet_error;
+        if (!e.empty()) per_seed.push_back(median(e));
+        reported += winding ? r.monitor.winding_reported : r.monitor.magnet_reported;
+        estimates += r.monitor.estimates;
+      }
+      char buf[64] = "never reported";
+      if (per_seed.empty() && reported > 0)
+        std::snprintf(buf, sizeof buf, "no truth, %.0f%%", 100.0 * reported / std::max(1.0, estimates));
+      if (!per_seed.empty())
+        std::snprintf(buf, sizeof buf, "%.2f [%.2f] %.0f%%", median(per_seed),
+                      *std::max_element(per_seed.begin(), per_seed.end()), 100.0 * reported / std::max(1.0, estimates));
+      std::printf("%-24s", buf);
+    }
+  };
+  temperature_row("winding T |err| [K]", true);
+  temperature_row("magnet T |err| [K]", false);
+  if (std::isfinite(onset)) std::printf("\nfault at t = %.4g s (first change of a fault profile)", onset);
+  else std::printf("\nno fault in the scenario: every alarm is a false alarm");
+  for (AlarmKind kind : {AlarmKind::WindingOverTemperature, AlarmKind::Demagnetisation, AlarmKind::ParameterJump,
+                         AlarmKind::FastDrift}) {
+    std::printf("\n%-26s", toString(kind));
+    for (std::size_t m = 0; m < methods.size(); ++m) {
+      int before = 0, after = 0;
+      std::vector<double> latency;
+      for (const RunResult& r : results[m]) {
+        bool b = false;
+        double first_after = NAN;
+        for (const AlarmEvent& ev : r.monitor.events) {
+          if (ev.kind != kind || !ev.raised) continue;
+          if (std::isfinite(onset) && ev.t >= onset) {
+            if (std::isnan(first_after)) first_after = ev.t - onset;
+          } else {
+            b = true;
+          }
+        }
+        before += b;
+        if (std::isfinite(first_after)) {
+          ++after;
+          latency.push_back(first_after);
+        }
+      }
+      char buf[64];
+      if (!std::isfinite(onset)) std::snprintf(buf, sizeof buf, "%d/%d seeds", before, seeds);
+      else if (latency.empty()) std::snprintf(buf, sizeof buf, "0/%d, early %d", seeds, before);
+      else
+        std::snprintf(buf, sizeof buf, "%d/%d %.3f [%.3f]s e%d", after, seeds, median(latency),
+                      *std::max_element(latency.begin(), latency.end()), before);
+      std::printf("%-24s", buf);
+    }
+  }
+  std::printf("\n(temperatures: median over seeds of each seed's median |error| [worst seed], %% of estimates that"
+              " carried one;\n alarms: seeds that raised it after the fault, latency median [worst] from the fault,"
+              " e = seeds that raised it before the fault)\n");
+}
+
 int runBench(const std::string& scenario_path, int seeds, const std::string& methods_arg, const std::string& config_path,
-             const std::string& json_out, const std::string& reference, int threads) {
+             const std::string& json_out, const std::string& reference, int threads, bool monitor) {
   const Scenario base = loadScenario(scenario_path);
   const IdentifierConfig config = configFor(config_path, "", -1);
   const std::vector<std::string> methods = methodsFrom(methods_arg);
@@ -280,7 +392,8 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
       sc.seed = base.seed + static_cast<std::uint64_t>(s);
       const std::vector<SimulatedSample> data = simulate(sc);
       for (std::size_t m = 0; m < methods.size(); ++m)
-        results[m][static_cast<std::size_t>(s)] = runOne(data, config, methods[m], static_cast<std::uint64_t>(s) + 1);
+        results[m][static_cast<std::size_t>(s)] =
+            runOne(data, config, methods[m], static_cast<std::uint64_t>(s) + 1, monitor);
     }
   };
   std::vector<std::thread> pool;
@@ -429,10 +542,26 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
   std::printf("\n(* some seeds never stayed within 1 %%; recognition time = first time after which every parameter "
               "flagged identifiable at the end stays within 1 %% of truth)\n");
 
+  const double onset = faultOnset(base);
+  if (monitor) printMonitor(methods, results, onset);
+
   for (std::size_t m = 0; m < methods.size(); ++m)
     for (std::size_t k = 0; k < results[m].size(); ++k) {
       const RunResult& r = results[m][k];
       json j = estimateJson(r.final);
+      if (monitor) {
+        json mon;
+        mon["winding_temperature_error_median"] = numberOrNull(medianOrNan(r.monitor.winding_error));
+        mon["magnet_temperature_error_median"] = numberOrNull(medianOrNan(r.monitor.magnet_error));
+        mon["estimates"] = r.monitor.estimates;
+        mon["winding_temperature_reported"] = r.monitor.winding_reported;
+        mon["magnet_temperature_reported"] = r.monitor.magnet_reported;
+        mon["fault_onset"] = numberOrNull(onset);
+        mon["alarms"] = json::array();
+        for (const AlarmEvent& ev : r.monitor.events)
+          mon["alarms"].push_back({{"t", ev.t}, {"kind", toString(ev.kind)}, {"raised", ev.raised}, {"text", ev.text}});
+        j["monitor"] = mon;
+      }
       if (!gaps[m][k].is_null()) j["gap_to_wls"] = gaps[m][k];
       j["seed"] = r.seed;
       for (int p = 0; p < kParameterCount; ++p)
@@ -552,6 +681,8 @@ int main(int argc, char** argv) {
   bench->add_option("--json", json_out, "one record per (method, seed)");
   bench->add_option("--reference", reference, "the paper's tables as CSV")->required();
   bench->add_option("--threads", threads, "worker threads (default 2)");
+  bool monitor = false;
+  bench->add_flag("--monitor", monitor, "also run the condition monitor: temperature errors, alarm counts and latencies");
 
   int repeat = 20;
   auto* perf = app.add_subcommand("perf", "samples/s of every method on one core over a recorded run");
@@ -582,7 +713,7 @@ int main(int argc, char** argv) {
       format.validate(format_path.empty() ? "command line" : format_path + " and the command line");
       return runIdentify(csv, method, config, seed, json_out, format);
     }
-    if (*bench) return runBench(scenario, seeds, methods, config, json_out, reference, threads);
+    if (*bench) return runBench(scenario, seeds, methods, config, json_out, reference, threads, monitor);
     if (*perf) return runPerf(scenario, methods, config, std::max(1, repeat), json_out);
   } catch (const UserError& e) {  // bad configuration or input: exit status 2
     std::fprintf(stderr, "error: %s\n", e.what());

@@ -304,6 +304,40 @@ class Thermal(unittest.TestCase):
         self.assertAlmostEqual(j["magnet_temperature"], 40.0 + (0.17858 / 0.18 - 1) / -1.2e-3, delta=5.0)
 
 
+class Monitoring(unittest.TestCase):
+    """A live run with a 5 % demagnetisation at 1.5 s: the event reaches the bag and the report."""
+
+    def test_demagnetisation_event_is_recorded_and_reported_with_temperatures(self):
+        tmp = tempfile.mkdtemp(prefix="pmsm_monitoring_")
+        bag, out = os.path.join(tmp, "demag.bag"), os.path.join(tmp, "report")
+        scenario = os.path.join(ROOT, "config", "scenarios", "demagnetisation.yaml")
+        config = os.path.join(ROOT, "config", "identifiers", "cold_start.yaml")
+        roslaunch("demo.launch", "scenario:=" + scenario, "duration:=2.3", "config:=" + config, "bag:=" + bag)
+        origin, raised = None, {}
+        with rosbag.Bag(bag) as b:
+            for topic, msg, _ in b.read_messages(topics=["/drive/samples_batch"]):
+                origin = msg.header.stamp.to_sec() if origin is None else min(origin, msg.header.stamp.to_sec())
+            for topic, msg, _ in b.read_messages():
+                if topic.endswith("/events") and msg.raised:
+                    raised.setdefault(msg.method, []).append((msg.kind, msg.header.stamp.to_sec() - origin))
+        for m in METHODS:  # every identifier raised it, 0 to 0.5 s after the step, and nothing else
+            self.assertIn(m, raised, "no alarm from %s" % m)
+            kinds = [k for k, _ in raised[m]]
+            self.assertEqual(kinds, ["demagnetisation"], m)
+            self.assertGreaterEqual(raised[m][0][1], 1.5, m)
+            self.assertLessEqual(raised[m][0][1], 2.0, m)
+        r = subprocess.run(["/usr/bin/python3", os.path.join(ROOT, "scripts", "report.py"), bag, "--out", out],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=300)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        for name in ("alarms.png", "temperatures.png"):
+            self.assertGreater(os.path.getsize(os.path.join(out, name)), 1000, name)
+        with open(os.path.join(out, "report.md")) as f:
+            report = f.read()
+        self.assertIn("Temperatures at the end", report)
+        alarm_rows = [line for line in report.splitlines() if "| demagnetisation | raised |" in line]
+        self.assertEqual(len(alarm_rows), len(METHODS), report)
+
+
 class CsvToBag(unittest.TestCase):
     def test_a_drive_log_becomes_a_bag_that_replays_and_converges(self):
         tmp = tempfile.mkdtemp(prefix="pmsm_csv2bag_")

@@ -79,5 +79,55 @@ class Markers(unittest.TestCase):
         self.assertEqual(len(self.state.series["fbdapso"]), 1)
 
 
+class Monitoring(unittest.TestCase):
+    """Temperatures and alarms beside the fitness panel."""
+
+    def build(self, state):
+        arr, layout = plotter.build_markers(state)
+        by_ns = {}
+        for m in arr.markers:
+            by_ns.setdefault(m.ns, []).append(m)
+        return by_ns, layout
+
+    def test_temperatures_against_truth_and_an_active_alarm(self):
+        state = plotter.PlotState(window=1.0, methods=["fbdapso", "rls"])
+        nan = float("nan")
+        for k in range(200):
+            t = k * 1e-2
+            state.add_truth(t, (2.875, 0.0045, 0.0135, 0.17858), (40.0 + 0.1 * k, 30.0))
+            # the magnet temperature is unknown for the first half (psi_f not identified)
+            state.add_estimate("fbdapso", t, (2.875, 0.0045, 0.0135, 0.17858), (True,) * 4, 1e-3, None,
+                               (40.5 + 0.1 * k, 31.0 if k >= 100 else nan))
+        by_ns, layout = self.build(state)
+        t0, t1, y0, y1 = layout["temperature"]
+        self.assertLess(y0, 30.0)
+        self.assertGreater(y1, 40.0 + 19.9 + 0.5)
+        ox, oy = plotter.ORIGINS["temperature"]
+        winding = by_ns["temperature/fbdapso/winding"][0]
+        self.assertAlmostEqual(winding.points[-1].y, oy + (40.5 + 19.9 - y0) / (y1 - y0) * plotter.PANEL_H, places=9)
+        magnet = by_ns["temperature/fbdapso/magnet"][0]
+        self.assertLess(len(magnet.points), len(winding.points))  # no point where it was unknown
+        legend = [m.text for m in by_ns["temperature/legend"]]
+        self.assertIn("fbdapso winding 60.4, magnet 31.0 degC", legend)
+        self.assertIn("truth winding 59.9, magnet 30.0 degC", legend)
+        self.assertEqual([m.text for m in by_ns["alarms"]], ["no alarm active"])
+
+        state.add_event(1.5, "fbdapso", "demagnetisation", True, "psi_f fell by 5.0 % within 0.3 s")
+        by_ns, _ = self.build(state)
+        alarm = by_ns["alarms"][0]
+        self.assertEqual(alarm.text, "ALARM fbdapso demagnetisation at 1.50 s: psi_f fell by 5.0 % within 0.3 s")
+        self.assertEqual((alarm.color.r, alarm.color.g), plotter.ALARM_RED[:2])
+        state.add_event(1.9, "fbdapso", "demagnetisation", False, "psi_f consistent with heat")
+        by_ns, _ = self.build(state)
+        self.assertEqual([m.text for m in by_ns["alarms"]], ["no alarm active"])
+
+    def test_no_temperature_panel_without_temperatures(self):
+        state = plotter.PlotState(window=1.0, methods=["fbdapso"])
+        state.add_estimate("fbdapso", 0.0, (1, 1, 1, 1), (True,) * 4, 1.0)
+        by_ns, layout = self.build(state)
+        self.assertNotIn("temperature", layout)
+        self.assertIn("alarms", by_ns)
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -6,7 +6,9 @@
 // running machine they stay within some kelvin of the winding, whose temperature R_s gives
 // independently. A psi_f that reads as a magnet more than `magnet_above_winding` hotter than the
 // winding, for `confirm_time`, is lost magnetisation (or, at a cold start, a magnet that was
-// already weak); a psi_f that falls faster than any thermal cause allows raises it too.
+// already weak). A psi_f that falls by more than `demagnetisation_drop` within `jump_window` raises
+// it too, with or without temperatures: 2 % in a second is 17 K of NdFeB heating per second, which
+// no machine's magnets do; it stays raised until psi_f comes back to within half the drop.
 #pragma once
 #include <deque>
 #include <string>
@@ -45,6 +47,9 @@ class ConditionMonitor {
   AlarmSettings s_;
   std::array<bool, 4> active_{};
   double demag_since_ = -1.0, overtemp_since_ = -1.0;
+  bool demag_by_temperature_ = false, demag_by_drop_ = false;
+  double psi_f_before_drop_ = 0.0, psi_f_drop_ = 0.0;  // the value before a detected drop, the drop [-]
+  std::string demag_text_;
   std::deque<Point> history_;
   struct LastValue {
     double t = -1.0, value = 0.0;

@@ -79,6 +79,8 @@ struct Scenario {
   Profile d_current_injection = Profile::constant(0.0);  ///< i_d reference [A]
   Profile R_s_scale = Profile::constant(1.0);    ///< true R_s = motor.R_s * scale(t) [-]
   Profile psi_f_scale = Profile::constant(1.0);  ///< true psi_f = motor.psi_f * scale(t) [-]
+  Profile L_d_scale = Profile::constant(1.0);    ///< true L_d = motor.L_d * scale(t) [-] (e.g. an inter-turn fault)
+  Profile L_q_scale = Profile::constant(1.0);    ///< true L_q = motor.L_q * scale(t) [-]
 };
 
 /// Reads a scenario YAML file. Throws ConfigError with one line "FILE: key 'k': problem".

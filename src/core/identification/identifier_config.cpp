@@ -153,6 +153,7 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   al.winding_max_temperature = y.number("alarms.winding_max_temperature", al.winding_max_temperature);
   al.winding_hysteresis = y.positive("alarms.winding_hysteresis", al.winding_hysteresis);
   al.magnet_above_winding = y.positive("alarms.magnet_above_winding", al.magnet_above_winding);
+  al.demagnetisation_drop = y.positive("alarms.demagnetisation_drop", al.demagnetisation_drop);
   al.confirm_time = y.positive("alarms.confirm_time", al.confirm_time);
   al.jump_fraction = y.positive("alarms.jump_fraction", al.jump_fraction);
   al.jump_window = y.positive("alarms.jump_window", al.jump_window);

@@ -1,5 +1,6 @@
 #include "pmsm_param_id/identification/monitor.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -42,30 +43,58 @@ std::vector<AlarmEvent> ConditionMonitor::update(const Estimate& e) {
         set(AlarmKind::WindingOverTemperature, false, t, "winding temperature back to normal", out);
     }
   }
-  // Demagnetisation: the magnet reads hotter than the winding by more than heat explains.
+  // Demagnetisation (1): the magnet reads hotter than the winding by more than heat explains.
   const Temperature& tm = e.magnet_temperature;
   if (std::isfinite(tw.value) && std::isfinite(tm.value)) {
     const double excess = tm.value - tw.value - tm.uncertainty - tw.uncertainty;
     if (excess > s_.magnet_above_winding) {
       if (demag_since_ < 0) demag_since_ = t;
-      if (t - demag_since_ >= s_.confirm_time) {
+      if (t - demag_since_ >= s_.confirm_time && !demag_by_temperature_) {
+        demag_by_temperature_ = true;
         std::snprintf(buf, sizeof buf,
                       "psi_f reads as a magnet at %.1f degC while the winding is at %.1f degC: %.0f K more than "
                       "heat explains: lost magnetisation", tm.value, tw.value, tm.value - tw.value);
-        set(AlarmKind::Demagnetisation, true, t, buf, out);
+        demag_text_ = buf;
       }
     } else {
       demag_since_ = -1.0;
-      if (excess < 0.5 * s_.magnet_above_winding) set(AlarmKind::Demagnetisation, false, t, "psi_f consistent with heat", out);
+      if (excess < 0.5 * s_.magnet_above_winding) demag_by_temperature_ = false;
     }
   }
+  history_.push_back({t, e.parameters, e.identifiable});
+  const double memory = std::max(s_.drift_window, s_.jump_window);
+  while (history_.size() > 2 && history_.front().t < t - memory) history_.pop_front();
+  // Demagnetisation (2): psi_f falling faster than any thermal cause allows: against the largest
+  // identified value within jump_window.
+  if (e.identifiable[kPsiF]) {
+    const double now = e.parameters[kPsiF];
+    if (demag_by_drop_) {
+      if (now > psi_f_before_drop_ * (1.0 - 0.5 * psi_f_drop_)) demag_by_drop_ = false;
+    } else {
+      double highest = 0.0, highest_t = t;
+      for (const Point& old : history_)
+        if (old.ok[kPsiF] && t - old.t <= s_.jump_window && old.p[kPsiF] > highest) {
+          highest = old.p[kPsiF];
+          highest_t = old.t;
+        }
+      if (highest > 0 && now < highest * (1.0 - s_.demagnetisation_drop)) {
+        demag_by_drop_ = true;
+        psi_f_before_drop_ = highest;
+        psi_f_drop_ = 1.0 - now / highest;
+        std::snprintf(buf, sizeof buf, "psi_f fell by %.1f %% within %.3f s, faster than any heating: lost magnetisation",
+                      100 * psi_f_drop_, t - highest_t);
+        demag_text_ = buf;
+      }
+    }
+  }
+  if (demag_by_temperature_ || demag_by_drop_) set(AlarmKind::Demagnetisation, true, t, demag_text_, out);
+  else set(AlarmKind::Demagnetisation, false, t, "psi_f consistent with heat", out);
+
   // Jumps: an identified value against the last identified one, however long the estimate was
   // not identified in between (a step makes the fit poor for a few window lengths), up to
   // jump_window. Drift: the change over drift_window of identified values.
   bool drift = false;
   std::string drift_text;
-  history_.push_back({t, e.parameters, e.identifiable});
-  while (history_.size() > 2 && history_.front().t < t - s_.drift_window) history_.pop_front();
   for (int p : {kRs, kLd, kLq}) {
     if (!e.identifiable[p]) continue;
     LastValue& last = last_[p];

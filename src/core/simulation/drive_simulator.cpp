@@ -32,6 +32,8 @@ MotorParameters DriveSimulator::trueMotorAt(double t) const {
   MotorParameters m = scenario_.motor;
   m.R_s *= scenario_.R_s_scale(t);
   m.psi_f *= scenario_.psi_f_scale(t);
+  m.L_d *= scenario_.L_d_scale(t);
+  m.L_q *= scenario_.L_q_scale(t);
   const ThermalModelSettings& th = scenario_.thermal;
   if (th.enabled) {  // the temperatures of the present sample
     m.R_s *= 1.0 + th.copper_coefficient * (winding_temperature_ - th.reference_temperature);

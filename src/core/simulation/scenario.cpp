@@ -93,6 +93,8 @@ Scenario loadScenario(const std::string& path) {
   s.d_current_injection = y.profile("profiles.d_current_injection", Profile::constant(0.0));
   s.R_s_scale = y.profile("profiles.R_s_scale", Profile::constant(1.0));
   s.psi_f_scale = y.profile("profiles.psi_f_scale", Profile::constant(1.0));
+  s.L_d_scale = y.profile("profiles.L_d_scale", Profile::constant(1.0));
+  s.L_q_scale = y.profile("profiles.L_q_scale", Profile::constant(1.0));
   y.rejectUnknownKeys();
   return s;
 }
