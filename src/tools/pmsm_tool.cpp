@@ -21,6 +21,7 @@
 #include "pmsm_param_id/identification/online_identifier.hpp"
 #include "pmsm_param_id/io/sample_csv.hpp"
 #include "pmsm_param_id/simulation/scenario.hpp"
+#include "reference_optimum.hpp"
 
 using namespace pmsm_param_id;
 using nlohmann::json;
@@ -91,8 +92,13 @@ void writeJson(const std::string& path, const json& j) {
   if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error(path + ": cannot write");
 }
 
+/// --fitness given on the command line (overrides the config's fitness:); empty: the config's.
+std::string g_fitness_override;
+
 IdentifierConfig configFor(const std::string& config_path, const std::string& method, long seed) {
   IdentifierConfig c = config_path.empty() ? IdentifierConfig{} : loadIdentifierConfig(config_path);
+  if (!g_fitness_override.empty() && !fitnessKindFrom(g_fitness_override, c.fitness))
+    throw ConfigError("--fitness: expected block, paper or paper_one_step, got '" + g_fitness_override + "'");
   if (!method.empty()) c.method = method;
   if (seed >= 0) c.seed = static_cast<std::uint64_t>(seed);
   validate(c, config_path.empty() ? "--method" : config_path);
@@ -377,6 +383,57 @@ void printMonitor(const std::vector<std::string>& methods, const std::vector<std
               " e = seeds that raised it before the fault)\n");
 }
 
+/// bench --fitness paper: the reference optimum of each seed's final window and each method's gap to it.
+void printReference(const std::vector<std::string>& methods, const std::vector<std::vector<RunResult>>& results,
+                    const std::vector<ReferenceOptimum>& references, const IdentifierConfig& config) {
+  std::printf("\nReference optimum of the %s fitness (N = %d samples) over each seed's final window: Ceres "
+              "(Levenberg-Marquardt) started at the truth\n", toString(config.fitness), config.fitness_window_samples);
+  int available = 0;
+  for (const auto& r : references) available += r.available;
+  if (available == 0) {
+    std::printf("  not available: %s\n", references.empty() ? "no seed" : references.front().message.c_str());
+    return;
+  }
+  for (int p = 0; p < kParameterCount; ++p) {
+    std::vector<double> e;
+    double worst = 0;
+    for (std::size_t k = 0; k < references.size(); ++k) {
+      if (!references[k].available) continue;
+      e.push_back(errorPercent(references[k].parameters[p], results[0][k].truth[p]));
+      worst = std::max(worst, std::abs(e.back()));
+    }
+    std::printf("  %-6s error %% against truth %+.4f [worst %.4f]\n", parameterNames()[p].c_str(), median(e), worst);
+  }
+  std::vector<double> f;
+  for (const auto& r : references)
+    if (r.available) f.push_back(r.fitness);
+  std::printf("  fitness %.4g A^2 (median; %d/%zu seeds solved)\n", median(f), available, references.size());
+  std::printf("%-22s", "gap to reference:");
+  for (const auto& m : methods) std::printf("%-24s", m.c_str());
+  std::printf("\n%-22s", "  fitness excess [A^2]");  // absolute: the optimum of noise-free data is ~0
+  for (std::size_t m = 0; m < methods.size(); ++m) {
+    std::vector<double> g;
+    for (std::size_t k = 0; k < references.size(); ++k)
+      if (references[k].available) g.push_back(results[m][k].final.fitness - references[k].fitness);
+    std::printf("%-24.3g", median(g));
+  }
+  std::printf("\n%-22s", "  parameters % [worst]");
+  for (std::size_t m = 0; m < methods.size(); ++m) {
+    std::vector<double> g;
+    for (std::size_t k = 0; k < references.size(); ++k) {
+      if (!references[k].available) continue;
+      double largest = 0;
+      for (int p = 0; p < kParameterCount; ++p)
+        largest = std::max(largest, std::abs(errorPercent(results[m][k].final.parameters[p], references[k].parameters[p])));
+      g.push_back(largest);
+    }
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.3f [%.3f]", median(g), *std::max_element(g.begin(), g.end()));
+    std::printf("%-24s", buf);
+  }
+  std::printf("\n(ekf, rls and wls minimise their own criteria, not this fitness; their gap is shown for comparison)\n");
+}
+
 int runBench(const std::string& scenario_path, int seeds, const std::string& methods_arg, const std::string& config_path,
              const std::string& json_out, const std::string& reference, int threads, bool monitor) {
   const Scenario base = loadScenario(scenario_path);
@@ -385,12 +442,19 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
   if (seeds < 1) throw ConfigError("--seeds: must be >= 1");
 
   std::vector<std::vector<RunResult>> results(methods.size(), std::vector<RunResult>(static_cast<std::size_t>(seeds)));
+  std::vector<ReferenceOptimum> references(static_cast<std::size_t>(seeds));
   std::atomic<int> next{0};
   auto worker = [&]() {
     for (int s; (s = next++) < seeds;) {
       Scenario sc = base;
       sc.seed = base.seed + static_cast<std::uint64_t>(s);
       const std::vector<SimulatedSample> data = simulate(sc);
+      if (config.fitness != FitnessKind::Block) {  // the paper fitness's optimum over the final window
+        OutputErrorWindow window(config.fitness, config.fitness_window_samples, config.window.voltage_delay_samples);
+        const std::size_t keep = static_cast<std::size_t>(window.windowSamples()) + 1;
+        for (std::size_t k = data.size() > keep ? data.size() - keep : 0; k < data.size(); ++k) window.push(data[k].sample);
+        references[static_cast<std::size_t>(s)] = paperReferenceOptimum(window.samples(), data.back().truth);
+      }
       for (std::size_t m = 0; m < methods.size(); ++m)
         results[m][static_cast<std::size_t>(s)] =
             runOne(data, config, methods[m], static_cast<std::uint64_t>(s) + 1, monitor);
@@ -542,6 +606,7 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
   std::printf("\n(* some seeds never stayed within 1 %%; recognition time = first time after which every parameter "
               "flagged identifiable at the end stays within 1 %% of truth)\n");
 
+  if (config.fitness != FitnessKind::Block) printReference(methods, results, references, config);
   const double onset = faultOnset(base);
   if (monitor) printMonitor(methods, results, onset);
 
@@ -569,11 +634,29 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
       j["recognition_time"] = numberOrNull(r.recognition_time);
       j["cpu_s"] = r.cpu_s;
       j["scenario"] = base.name;
+      j["fitness_kind"] = toString(r.method == "ekf" || r.method == "rls" || r.method == "wls" ? FitnessKind::Block : config.fitness);
       j["confidently_wrong"] = json::object();
       for (int p = 0; p < kParameterCount; ++p)
         j["confidently_wrong"][parameterNames()[p]] = confidentlyWrong(r, p);
       records.push_back(j);
     }
+  for (std::size_t k = 0; k < references.size() && config.fitness != FitnessKind::Block; ++k) {
+    const ReferenceOptimum& ref = references[k];
+    json j;
+    j["method"] = "reference";
+    j["seed"] = k + 1;
+    j["scenario"] = base.name;
+    j["fitness_kind"] = toString(config.fitness);
+    j["available"] = ref.available;
+    j["solver"] = ref.message;
+    j["fitness"] = numberOrNull(ref.available ? ref.fitness : NAN);
+    for (int p = 0; p < kParameterCount; ++p) {
+      j[parameterNames()[p]] = numberOrNull(ref.available ? ref.parameters[p] : NAN);
+      j["err_" + parameterNames()[p]] =
+          numberOrNull(ref.available ? errorPercent(ref.parameters[p], results[0][k].truth[p]) : NAN);
+    }
+    records.push_back(j);
+  }
   if (!json_out.empty()) writeJson(json_out, records);
   return 0;
 }
@@ -581,7 +664,7 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
 // ---------------------------------------------------------------------------------------------
 // perf: samples per second of wall time, one core, over a recorded run
 int runPerf(const std::string& scenario_path, const std::string& methods_arg, const std::string& config_path,
-            int repeat, const std::string& json_out) {
+            int repeat, const std::string& json_out, const std::string& paper_scenario_path) {
   const std::vector<std::string> methods = methodsFrom(methods_arg);
   const Scenario scenario = loadScenario(scenario_path);
   const std::vector<SimulatedSample> data = simulate(scenario);
@@ -634,6 +717,53 @@ int runPerf(const std::string& scenario_path, const std::string& methods_arg, co
                        {"realtime_factor_10khz", rate / 1e4}, {"realtime_factor_1mhz", rate / 1e6},
                        {"samples", samples}, {"scenario", scenario.name}});
   }
+  // The paper's output-error fitness (section 10): its cost grows with the window N; measured on
+  // the same 10 kHz recording and on a 1 MHz one (the paper's rate), for the swarm methods.
+  std::vector<std::pair<std::string, std::vector<SimulatedSample>>> recordings{{scenario.name, data}};
+  if (!paper_scenario_path.empty()) {
+    Scenario fast = loadScenario(paper_scenario_path);
+    fast.duration = std::min(fast.duration, 100000 * fast.drive.sample_period);  // 100 000 samples
+    recordings.emplace_back(fast.name, simulate(fast));
+  }
+  IdentifierConfig paper = base;
+  paper.fitness = FitnessKind::Paper;
+  {
+    OutputErrorWindow window(FitnessKind::Paper, paper.fitness_window_samples, paper.window.voltage_delay_samples);
+    for (const auto& s : data) window.push(s.sample);
+    std::vector<ParameterVector> points(static_cast<std::size_t>(paper.swarm.particles), data.back().truth);
+    for (std::size_t k = 0; k < points.size(); ++k) points[k][kRs] *= 1.0 + 0.01 * static_cast<double>(k);
+    std::vector<double> out(points.size());
+    const int n = std::max(1, 2000000 / paper.fitness_window_samples);
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int k = 0; k < n; ++k) window.batch(points.data(), points.size(), out.data());
+    const double batch_ns = 1e9 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / n;
+    std::printf("\npaper fitness (N = %d samples): all %d particles at once %.0f ns = %.2f ns per particle and sample\n",
+                paper.fitness_window_samples, paper.swarm.particles, batch_ns,
+                batch_ns / paper.swarm.particles / (paper.fitness_window_samples - 1));
+    records.push_back({{"kind", "fitness"}, {"fitness", "paper"}, {"window_samples", paper.fitness_window_samples},
+                       {"particles", paper.swarm.particles}, {"all_particles_ns", batch_ns}, {"scenario", scenario.name}});
+  }
+  std::printf("%-9s %-10s %14s %12s %14s\n", "method", "rate", "samples/s", "ns/sample", "RT x");
+  for (const std::string& method : methods) {
+    if (method != "fbdapso" && method != "sapso" && method != "pso") continue;
+    for (const auto& [name, recording] : recordings) {
+      IdentifierConfig c = paper;
+      c.method = method;
+      auto id = makeIdentifier(c);
+      const auto t0 = std::chrono::steady_clock::now();
+      for (const auto& s : recording) id->process(s.sample);
+      const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      const double rate = static_cast<double>(recording.size()) / wall;
+      const double sample_rate = 1.0 / (recording[1].sample.t - recording[0].sample.t);
+      char label[32];
+      std::snprintf(label, sizeof label, "%g kHz", sample_rate / 1e3);
+      std::printf("%-9s %-10s %14.0f %12.1f %14.3f\n", method.c_str(), label, rate, 1e9 / rate, rate / sample_rate);
+      records.push_back({{"kind", "method"}, {"method", method}, {"fitness", "paper"}, {"samples_per_s", rate},
+                         {"ns_per_sample", 1e9 / rate}, {"window_samples", c.fitness_window_samples},
+                         {"sample_rate_hz", sample_rate}, {"realtime_factor", rate / sample_rate},
+                         {"samples", recording.size()}, {"scenario", name}});
+    }
+  }
   if (!json_out.empty()) writeJson(json_out, records);
   return 0;
 }
@@ -661,6 +791,7 @@ int main(int argc, char** argv) {
   ident->add_option("--config", config, "identifier YAML (bounds, initial values, tuning)");
   ident->add_option("--seed", seed, "random seed (swarm methods)");
   ident->add_option("--json", json_out, "write the final estimate as JSON");
+  ident->add_option("--fitness", g_fitness_override, "block | paper | paper_one_step (swarm methods; overrides the config)");
   std::string format_path, time_unit, speed_unit, current_unit, voltage_unit, dq_scaling;
   std::vector<std::string> column_names;
   int pole_pairs = 0;
@@ -681,6 +812,7 @@ int main(int argc, char** argv) {
   bench->add_option("--json", json_out, "one record per (method, seed)");
   bench->add_option("--reference", reference, "the paper's tables as CSV")->required();
   bench->add_option("--threads", threads, "worker threads (default 2)");
+  bench->add_option("--fitness", g_fitness_override, "block | paper | paper_one_step (swarm methods; overrides the config)");
   bool monitor = false;
   bench->add_flag("--monitor", monitor, "also run the condition monitor: temperature errors, alarm counts and latencies");
 
@@ -691,6 +823,8 @@ int main(int argc, char** argv) {
   perf->add_option("--config", config, "identifier YAML");
   perf->add_option("--repeat", repeat, "passes over the recording (default 20)");
   perf->add_option("--json", json_out, "one record per method");
+  std::string paper_scenario;
+  perf->add_option("--paper-scenario", paper_scenario, "a second recording for the paper fitness (e.g. 1 MHz wc1.yaml)");
 
   CLI11_PARSE(app, argc, argv);
   try {
@@ -714,7 +848,7 @@ int main(int argc, char** argv) {
       return runIdentify(csv, method, config, seed, json_out, format);
     }
     if (*bench) return runBench(scenario, seeds, methods, config, json_out, reference, threads, monitor);
-    if (*perf) return runPerf(scenario, methods, config, std::max(1, repeat), json_out);
+    if (*perf) return runPerf(scenario, methods, config, std::max(1, repeat), json_out, paper_scenario);
   } catch (const UserError& e) {  // bad configuration or input: exit status 2
     std::fprintf(stderr, "error: %s\n", e.what());
     return 2;

@@ -7,6 +7,7 @@
 #include "pmsm_param_id/io/config_error.hpp"
 #include "pmsm_param_id/identification/metrics.hpp"
 #include "pmsm_param_id/identification/online_identifier.hpp"
+#include "pmsm_param_id/identification/output_error.hpp"
 #include "pmsm_param_id/io/sample_csv.hpp"
 #include "test_helpers.hpp"
 
@@ -207,4 +208,117 @@ TEST(Metrics, RecognitionTimeIsTheLastEntryIntoTheBand) {
   EXPECT_DOUBLE_EQ(recognitionTime(trace, {true, true, true, true}), 0.7000000000000001);
   trace.back().estimate[kRs] = 2.0;
   EXPECT_TRUE(std::isnan(recognitionTime(trace, {true, false, false, false})));
+}
+
+// ---------------------------------------------------------------------------------------------
+// The paper's output-error fitness (doc/algorithm.md section 10).
+
+namespace {
+// Currents produced by Eq. (11) itself (forward Euler) from the voltages and speed of a simulated
+// drive: data on which the paper's adjustable model is exact, so its fitness is zero at the truth.
+std::vector<Sample> eulerData(const ParameterVector& p, const std::vector<SimulatedSample>& drive) {
+  std::vector<Sample> out;
+  double id = drive.front().sample.i_d, iq = drive.front().sample.i_q;
+  for (std::size_t k = 0; k < drive.size(); ++k) {
+    Sample s = drive[k].sample;
+    s.i_d = id;
+    s.i_q = iq;
+    out.push_back(s);
+    if (k + 1 == drive.size()) break;
+    const double T = drive[k + 1].sample.t - s.t;
+    const double did = (s.u_d - p[kRs] * id + s.omega_e * p[kLq] * iq) / p[kLd];
+    const double diq = (s.u_q - p[kRs] * iq - s.omega_e * (p[kLd] * id + p[kPsiF])) / p[kLq];
+    id += T * did;
+    iq += T * diq;
+  }
+  return out;
+}
+}  // namespace
+
+TEST(PaperFitness, IsEquationElevenAndTwelve) {
+  const auto drive = cleanDrive("wc1_drive.yaml", 0.1);
+  const ParameterVector truth = drive.back().truth;
+  const std::vector<Sample> data = eulerData(truth, drive);
+  OutputErrorWindow window(FitnessKind::Paper, 300, 0);
+  for (const Sample& s : data) window.push(s);
+  ASSERT_TRUE(window.ready());
+  EXPECT_LT(window(truth), 1e-20);  // the model reproduces its own currents
+  // A 1 % error in L_d: the model's currents drift away over the window; the fitness is the mean
+  // of the squared current error over the N - 1 predicted samples, recomputed here by hand.
+  ParameterVector off = truth;
+  off[kLd] *= 1.01;
+  const std::vector<Sample> w = window.samples();
+  ASSERT_EQ(w.size(), 300u);
+  EXPECT_DOUBLE_EQ(w.back().t, data.back().t);
+  double id = w[0].i_d, iq = w[0].i_q, sum = 0;
+  for (std::size_t k = 0; k + 1 < w.size(); ++k) {
+    const double T = w[k + 1].t - w[k].t;
+    const double did = (w[k].u_d - off[kRs] * id + w[k].omega_e * off[kLq] * iq) / off[kLd];
+    const double diq = (w[k].u_q - off[kRs] * iq - w[k].omega_e * (off[kLd] * id + off[kPsiF])) / off[kLq];
+    id += T * did;
+    iq += T * diq;
+    sum += std::pow(w[k + 1].i_d - id, 2) + std::pow(w[k + 1].i_q - iq, 2);
+  }
+  EXPECT_GT(window(off), 1e-8);
+  EXPECT_NEAR(window(off), sum / 299.0, 1e-12 * sum);
+  // All particles at once give the same numbers as one at a time, for more than one chunk of 32.
+  std::vector<ParameterVector> many(45, truth);
+  for (std::size_t k = 0; k < many.size(); ++k) many[k][k % 4] *= 1.0 + 0.003 * static_cast<double>(k);
+  std::vector<double> batch(many.size());
+  window.batch(many.data(), many.size(), batch.data());
+  for (std::size_t k = 0; k < many.size(); ++k) EXPECT_DOUBLE_EQ(batch[k], window(many[k])) << k;
+  // A model that diverges is the worst fitness, never NaN (the swarm compares fitness values).
+  ParameterVector unstable = truth;
+  unstable[kLd] = 1e-9;
+  EXPECT_EQ(window(unstable), 1e300);
+  // One step (Eq. 13): the newest sample only.
+  OutputErrorWindow one(FitnessKind::PaperOneStep, 300, 0);
+  for (const Sample& s : data) one.push(s);
+  EXPECT_EQ(one.samples().size(), 2u);
+  EXPECT_LT(one(truth), 1e-24);
+}
+
+TEST(PaperFitness, DeclaredVoltageDelayShiftsTheActingVoltage) {
+  OutputErrorWindow window(FitnessKind::Paper, 3, 1);
+  for (int k = 0; k < 4; ++k) window.push(Sample{1e-4 * k, 10.0 * k, -10.0 * k, 0, 0, 0});
+  const std::vector<Sample> w = window.samples();
+  ASSERT_EQ(w.size(), 3u);
+  EXPECT_DOUBLE_EQ(w[0].t, 1e-4);
+  EXPECT_DOUBLE_EQ(w[0].u_d, 0.0);   // the voltage logged at t = 0 acts from t = 1e-4 on
+  EXPECT_DOUBLE_EQ(w[2].u_q, -20.0);
+  window.clear();                    // after a break the first voltage has no predecessor
+  window.push(Sample{1.0, 5, 5, 0, 0, 0});
+  EXPECT_EQ(window.size(), 0u);
+}
+
+// The swarms on the paper fitness find its optimum where the adjustable model is exact.
+TEST(PaperFitness, SwarmFindsTheOptimumWhereTheModelIsExact) {
+  const auto drive = cleanDrive("wc1_drive.yaml", 0.3);
+  const ParameterVector truth = drive.back().truth;
+  const std::vector<Sample> data = eulerData(truth, drive);
+  for (const char* method : {"fbdapso", "pso"}) {
+    IdentifierConfig c;
+    c.method = method;
+    c.fitness = FitnessKind::Paper;
+    auto id = makeIdentifier(c);
+    for (const Sample& s : data) id->process(s);
+    const Estimate e = id->estimate();
+    for (int p = 0; p < kParameterCount; ++p)
+      EXPECT_NEAR(e.parameters[p] / truth[p], 1.0, 0.01) << method << " " << parameterNames()[p];
+    EXPECT_LT(e.fitness, 1e-6) << method;  // the paper fitness at the estimate, not the block fitness
+  }
+}
+
+TEST(IdentifierConfig, FitnessKindIsReadAndAnUnknownOneNamed) {
+  const std::string good = test_helpers::writeTemp("paper_fitness.yaml", "fitness: paper\nfitness_window_samples: 500\n");
+  const IdentifierConfig c = loadIdentifierConfig(good);
+  EXPECT_EQ(c.fitness, FitnessKind::Paper);
+  EXPECT_EQ(c.fitness_window_samples, 500);
+  const std::string bad = test_helpers::writeTemp("bad_fitness.yaml", "fitness: papper\n");
+  try {
+    loadIdentifierConfig(bad);
+    ADD_FAILURE();
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()), bad + ": key 'fitness': expected block, paper or paper_one_step, got 'papper'");
+  }
 }

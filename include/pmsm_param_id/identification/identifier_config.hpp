@@ -8,6 +8,7 @@
 #include "pmsm_param_id/identification/particle_swarm.hpp"
 #include "pmsm_param_id/identification/thermal.hpp"
 #include "pmsm_param_id/identification/monitor_settings.hpp"
+#include "pmsm_param_id/identification/output_error.hpp"
 #include "pmsm_param_id/model/motor_model.hpp"
 
 namespace pmsm_param_id {
@@ -64,6 +65,9 @@ struct IdentifierConfig {
   double sapso_T1 = 1000, sapso_C1 = 0.8;
   double fbdapso_T1 = 800, fbdapso_T2 = 500, fbdapso_C1 = 0.8, fbdapso_C2 = 0.9, fbdapso_zero_delta = 0.001;
   int iterations_per_sample = 1;
+  /// What the swarm methods minimise (doc/algorithm.md section 10); ekf, rls and wls keep their own.
+  FitnessKind fitness = FitnessKind::Block;
+  int fitness_window_samples = 300;   ///< N of the paper fitness: the adjustable model runs over the last N samples
   EkfSettings ekf;
   RlsSettings rls;
   AssessmentSettings assessment;

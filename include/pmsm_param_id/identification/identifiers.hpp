@@ -4,6 +4,7 @@
 #include <memory>
 
 #include "pmsm_param_id/identification/online_identifier.hpp"
+#include "pmsm_param_id/identification/output_error.hpp"
 #include "pmsm_param_id/identification/particle_swarm.hpp"
 
 namespace pmsm_param_id {
@@ -11,8 +12,9 @@ namespace pmsm_param_id {
 /// The acceptance policy that config.method names (pso, sapso, fbdapso) with the config's constants.
 std::shared_ptr<const AcceptancePolicy> makeAcceptancePolicy(const IdentifierConfig& config);
 
-/// PSO, SAPSO or FBDAPSO on the block fitness: iterations_per_sample swarm iterations per
-/// sample once the search box exists (the paper's "identify every sampling point").
+/// PSO, SAPSO or FBDAPSO on the block fitness or the paper's output-error fitness (config.fitness):
+/// iterations_per_sample swarm iterations per sample once the search box exists (the paper's
+/// "identify every sampling point").
 class SwarmIdentifier : public OnlineIdentifier {
  public:
   explicit SwarmIdentifier(const IdentifierConfig& config);
@@ -27,9 +29,13 @@ class SwarmIdentifier : public OnlineIdentifier {
   std::array<bool, kParameterCount> atBound() const override;
   std::uint64_t iterations() const override { return swarm_ ? swarm_->iterations() : 0; }
   double temperature() const override;
+  double fitnessAt(const ParameterVector& p) const override;
 
  private:
   std::unique_ptr<ParticleSwarm> swarm_;
+  std::unique_ptr<OutputErrorWindow> output_error_;  // the paper's fitness, when configured
+  template <class F>
+  void iterate(const F& fitness);
 };
 
 using EkfState = Eigen::Matrix<double, 6, 1>;     ///< {i_d, i_q, R_s, L_d, L_q, psi_f}

@@ -49,7 +49,7 @@ struct Estimate {
   double inverter_relative_uncertainty = 0.0;  ///< [-]
   Temperature winding_temperature;  ///< from R_s while identified (thermal: block), else NaN [degC]
   Temperature magnet_temperature;   ///< from psi_f while identified (thermal: block), else NaN [degC]
-  double fitness = 0.0;             ///< mean squared block current error at the estimate [A^2]
+  double fitness = 0.0;             ///< the method's fitness at the estimate [A^2] (block, or paper: section 10)
   double sample_period = 0.0;       ///< nominal sampling period in use [s] (0 while unknown)
   std::uint64_t iteration = 0;      ///< swarm iterations (0 for ekf, rls)
   double temperature = 0.0;         ///< mean particle temperature (NaN where there is none)
@@ -97,6 +97,8 @@ class OnlineIdentifier {
   virtual std::array<bool, kParameterCount> atBound() const { return {}; }
   virtual std::uint64_t iterations() const { return 0; }
   virtual double temperature() const;
+  /// The fitness the method minimises, at p [A^2] (the block fitness unless the method has its own).
+  virtual double fitnessAt(const ParameterVector& p) const;
   bool started() const { return box_.valid; }
   /// Re-fits the window and re-centres a data-driven box whose centre the data's optimum has left
   /// (outside [centre / sqrt(k), centre * sqrt(k)]). Returns true when it moved.

@@ -8,6 +8,8 @@
 #include <limits>
 #include <memory>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "pmsm_param_id/model/motor_model.hpp"
@@ -148,6 +150,14 @@ class ParticleSwarm {
     double f = 0.0;
   };
   std::vector<Move> moves_;  // this iteration's candidate positions (reused, no allocation per sample)
+  std::vector<ParameterVector> batch_points_;  // the same in parameter units, for a batch fitness
+  std::vector<double> batch_fitness_;
+  /// F has batch(const ParameterVector*, size_t, double*): every particle in one call.
+  template <class F, class = void>
+  struct HasBatch : std::false_type {};
+  template <class F>
+  struct HasBatch<F, std::void_t<decltype(std::declval<const F&>().batch(nullptr, std::size_t{}, nullptr))>>
+      : std::true_type {};
   Point gbest_{};
   double f_gbest_ = std::numeric_limits<double>::infinity();
   FastRandom rng_;
@@ -182,7 +192,15 @@ void ParticleSwarm::iterate(const F& f) {
       m.v[d] = v;
     }
   }
-  for (Move& m : moves_) m.f = f(toParameters(m.x));
+  if constexpr (HasBatch<F>::value) {  // all particles at once (the output-error fitness)
+    batch_points_.resize(n);
+    batch_fitness_.resize(n);
+    for (std::size_t i = 0; i < n; ++i) batch_points_[i] = toParameters(moves_[i].x);
+    f.batch(batch_points_.data(), n, batch_fitness_.data());
+    for (std::size_t i = 0; i < n; ++i) moves_[i].f = batch_fitness_[i];
+  } else {
+    for (Move& m : moves_) m.f = f(toParameters(m.x));
+  }
   evaluations_ += n;
   // 2. Acceptance (Eq. 15-17), temperatures (Eq. 7-8), personal and global bests.
   Point best = gbest_;

@@ -96,6 +96,10 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   c.swarm.restart_velocity = y.number("swarm.restart_velocity", c.swarm.restart_velocity);
   c.iterations_per_sample =
       static_cast<int>(y.integer("swarm.iterations_per_sample", c.iterations_per_sample, 1, 10000));
+  const std::string fitness = y.text("fitness", toString(c.fitness));
+  if (!fitnessKindFrom(fitness, c.fitness)) y.fail("fitness", "expected block, paper or paper_one_step, got '" + fitness + "'");
+  c.fitness_window_samples =
+      static_cast<int>(y.integer("fitness_window_samples", c.fitness_window_samples, 2, 10000000));
   c.sapso_T1 = y.number("sapso.T1", c.sapso_T1);
   c.sapso_C1 = y.number("sapso.C1", c.sapso_C1);
   c.fbdapso_T1 = y.number("fbdapso.T1", c.fbdapso_T1);

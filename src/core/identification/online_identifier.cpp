@@ -315,8 +315,12 @@ Estimate OnlineIdentifier::estimate() const {
   }
   bool positive = true;
   for (double v : e.parameters) positive = positive && std::isfinite(v) && v > 0;
-  e.fitness = positive && stats_.hasBlocks() ? stats_.fitness(e.parameters) : std::numeric_limits<double>::quiet_NaN();
+  e.fitness = positive ? fitnessAt(e.parameters) : std::numeric_limits<double>::quiet_NaN();
   return e;
+}
+
+double OnlineIdentifier::fitnessAt(const ParameterVector& p) const {
+  return stats_.hasBlocks() ? stats_.fitness(p) : std::numeric_limits<double>::quiet_NaN();
 }
 
 }  // namespace pmsm_param_id

@@ -14,7 +14,26 @@ std::shared_ptr<const AcceptancePolicy> makeAcceptancePolicy(const IdentifierCon
   throw std::invalid_argument("no acceptance policy for method '" + c.method + "'");
 }
 
-SwarmIdentifier::SwarmIdentifier(const IdentifierConfig& config) : OnlineIdentifier(config) {}
+SwarmIdentifier::SwarmIdentifier(const IdentifierConfig& config) : OnlineIdentifier(config) {
+  if (config.fitness != FitnessKind::Block)
+    output_error_ = std::make_unique<OutputErrorWindow>(config.fitness, config.fitness_window_samples,
+                                                        config.window.voltage_delay_samples);
+}
+
+double SwarmIdentifier::fitnessAt(const ParameterVector& p) const {
+  if (!output_error_) return OnlineIdentifier::fitnessAt(p);
+  return output_error_->ready() ? (*output_error_)(p) : std::numeric_limits<double>::quiet_NaN();
+}
+
+namespace {
+/// The paper's fitness as the swarm sees it: one vector or every particle at once. Holds a pointer
+/// (the swarm copies its fitness into a std::function at cycle restarts).
+struct OutputErrorFitness {
+  const OutputErrorWindow* window;
+  double operator()(const ParameterVector& p) const { return (*window)(p); }
+  void batch(const ParameterVector* p, std::size_t n, double* out) const { window->batch(p, n, out); }
+};
+}  // namespace
 
 void SwarmIdentifier::restart() {
   // Particle 0 starts at the configured initial values when there are any (the paper's "far away"
@@ -35,10 +54,21 @@ std::array<bool, kParameterCount> SwarmIdentifier::atBound() const {
   return swarm_ ? swarm_->bestAtBound() : std::array<bool, kParameterCount>{};
 }
 
-void SwarmIdentifier::update(const Sample&, bool, bool) {
+void SwarmIdentifier::update(const Sample& s, bool, bool continuity_broken) {
+  if (output_error_) {
+    if (continuity_broken) output_error_->clear();
+    output_error_->push(s);
+    if (!output_error_->ready() || !swarm_) return;
+    iterate(OutputErrorFitness{output_error_.get()});
+    return;
+  }
   if (!stats_.hasBlocks() || !swarm_) return;
   const BlockStatistics& stats = stats_;
-  const auto fitness = [&stats](const ParameterVector& p) { return stats.fitness(p); };
+  iterate([&stats](const ParameterVector& p) { return stats.fitness(p); });
+}
+
+template <class F>
+void SwarmIdentifier::iterate(const F& fitness) {
   for (int i = 0; i < config_.iterations_per_sample; ++i) {
     swarm_->iterate(fitness);
     // At a new cycle whose best sits on a face of the box: does the box still hold the data's
