@@ -312,3 +312,67 @@ TEST(RealDrive, WindingTemperatureSettlesWhereCopperLossMeetsTheLossToAmbient) {
   EXPECT_NEAR(d.back().truth[kRs], Rref * (1 + a * (d.back().winding_temperature - 20.0)), 1e-3 * Rref);
   EXPECT_NEAR(d.back().magnet_temperature, 20.0, 0.5);
 }
+
+// ---------------------------------------------------------------------------------------------
+// Saturating magnetics (model/magnetics.hpp).
+
+TEST(Saturation, FluxLinkagesComeFromOneCoEnergy) {
+  const Scenario s = scenario("saturated_ipmsm.yaml");
+  const double h = 1e-5;
+  for (double i_d : {-3.0, 0.0, 2.0})
+    for (double i_q : {0.5, 6.0, 12.0}) {
+      const MagneticState g = magneticState(s.motor, s.saturation, i_d, i_q);
+      const auto psi = [&](double d, double q) { return magneticState(s.motor, s.saturation, d, q); };
+      const double dpsi_d_di_q = (psi(i_d, i_q + h).psi_d - psi(i_d, i_q - h).psi_d) / (2 * h);
+      const double dpsi_q_di_d = (psi(i_d + h, i_q).psi_q - psi(i_d - h, i_q).psi_q) / (2 * h);
+      EXPECT_NEAR(dpsi_d_di_q, g.L_dq, 1e-8);  // reciprocity: one symmetric incremental matrix
+      EXPECT_NEAR(dpsi_q_di_d, g.L_dq, 1e-8);
+      EXPECT_NEAR((psi(i_d, i_q + h).psi_q - psi(i_d, i_q - h).psi_q) / (2 * h), g.L_qq, 1e-8);
+      EXPECT_NEAR((psi(i_d + h, i_q).psi_d - psi(i_d - h, i_q).psi_d) / (2 * h), g.L_dd, 1e-8);
+      EXPECT_NEAR(g.psi_d - s.motor.L_d * i_d, g.psi_d_at_zero_i_d, 1e-12);
+    }
+  // The constants of the scenario file: at 12 A the incremental L_q is 38.6 mH, the secant 70 mH.
+  const MagneticState rated = magneticState(s.motor, s.saturation, 0.0, 12.0);
+  EXPECT_NEAR(rated.L_qq, 0.110 / std::sqrt(1 + std::pow(12.0 / 4.5, 2)), 1e-12);
+  EXPECT_NEAR(rated.L_qq, 0.0386, 0.0005);
+  EXPECT_NEAR(rated.L_q_secant, 0.0703, 0.0005);
+  EXPECT_NEAR(rated.psi_d_at_zero_i_d, 0.5 - 0.5 * 3.5e-4 * 144, 1e-12);
+}
+
+// On the dyno, without injection or noise: the speed is the profile's, i_q follows its reference,
+// and the steady voltages are those of the flux map, u = R i + omega J psi(i), within 0.1 %.
+TEST(Saturation, SteadyVoltagesAreThoseOfTheFluxMap) {
+  Scenario s = scenario("saturated_ipmsm.yaml");
+  s.sensors = {};
+  s.d_current_injection = Profile::constant(-2.0);
+  s.q_current_reference = Profile::constant(12.0);
+  s.duration = 0.3;
+  const auto data = run(s);
+  const SimulatedSample& last = data.back();
+  const double omega_e = 3 * 900.0 * 2 * M_PI / 60.0;
+  EXPECT_NEAR(last.sample.omega_e, omega_e, 1e-9);
+  EXPECT_NEAR(last.i_q_true, 12.0, 0.01);
+  EXPECT_NEAR(last.i_d_true, -2.0, 0.01);
+  const MagneticState g = magneticState(s.motor, s.saturation, last.i_d_true, last.i_q_true);
+  EXPECT_NEAR(last.u_d_applied, s.motor.R_s * last.i_d_true - omega_e * g.psi_q, 1e-3 * std::abs(omega_e * g.psi_q));
+  EXPECT_NEAR(last.u_q_applied, s.motor.R_s * last.i_q_true + omega_e * g.psi_d, 1e-3 * std::abs(omega_e * g.psi_d));
+  // The per-sample truth is what the estimates stand for at this operating point.
+  EXPECT_DOUBLE_EQ(last.truth[kLd], g.L_dd);
+  EXPECT_NEAR(last.truth[kLq], g.L_q_secant, 1e-12);
+  EXPECT_NEAR(last.truth[kPsiF], g.psi_d_at_zero_i_d, 1e-12);
+  // Linear magnetics (no saturation block) would need about 30 % more q-axis flux.
+  EXPECT_LT(g.psi_q, 0.7 * s.motor.L_q * 12.0);
+}
+
+TEST(Saturation, WithoutSaturationTheSamplesAreThoseOfTheLinearModel) {
+  Scenario s = scenario("wc1_drive.yaml");
+  s.duration = 0.05;
+  const auto linear = run(s);
+  s.saturation.enabled = true;  // a block with zero saturation current and cross term
+  const auto zero = run(s);
+  ASSERT_EQ(linear.size(), zero.size());
+  for (std::size_t k = 0; k < linear.size(); k += 50) {
+    EXPECT_NEAR(linear[k].i_d_true, zero[k].i_d_true, 1e-9);
+    EXPECT_NEAR(linear[k].i_q_true, zero[k].i_q_true, 1e-9);
+  }
+}

@@ -25,6 +25,9 @@ struct SimulatedSample {
   double inverter_error_voltage = 0.0;  ///< pole-voltage error amplitude V_dc t_dead f_sw + drop [V]
   double winding_temperature = NAN;     ///< true winding temperature [degC] (thermal model only)
   double magnet_temperature = NAN;      ///< true magnet temperature [degC] (thermal model only)
+  /// Flux linkages and incremental/secant inductances at the true current (saturation: truth is
+  /// then {R_s, L_dd, psi_q / i_q, psi_d(0, i_q)}, what the identifier's estimates stand for).
+  MagneticState magnetics;
 };
 
 class DriveSimulator {

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <string>
 
+#include "pmsm_param_id/model/magnetics.hpp"
 #include "pmsm_param_id/model/motor_model.hpp"
 #include "pmsm_param_id/simulation/profile.hpp"
 
@@ -16,6 +17,9 @@ struct DriveSettings {
   double max_current = 30.0;            ///< current reference limit [A]
   double current_loop_bandwidth_hz = 1000.0;  ///< PI current loops, pole-zero cancellation [Hz]
   double speed_loop_bandwidth_hz = 20.0;      ///< PI speed loop [Hz]
+  /// false: the speed loop sets i_q (speed control); true: i_q follows the q_current_reference
+  /// profile and the speed is imposed by a load machine (a dyno), following speed_rpm exactly.
+  bool torque_control = false;
 };
 
 /// What a real inverter does to the commanded voltage (all off by default: the paper tier).
@@ -71,12 +75,14 @@ struct Scenario {
   DriveSettings drive;
   InverterSettings inverter;
   ThermalModelSettings thermal;
+  SaturationSettings saturation;  ///< saturating magnetics (off: the linear model of Eq. 1)
   SensorSettings sensors;
   double duration = 0.5;  ///< [s]
   uint64_t seed = 1;
   Profile speed_reference_rpm = Profile::constant(0.0);  ///< mechanical speed reference [rpm]
   Profile load_torque = Profile::constant(0.0);          ///< [N m]
   Profile d_current_injection = Profile::constant(0.0);  ///< i_d reference [A]
+  Profile q_current_reference = Profile::constant(0.0);  ///< i_q reference in torque control [A]
   Profile R_s_scale = Profile::constant(1.0);    ///< true R_s = motor.R_s * scale(t) [-]
   Profile psi_f_scale = Profile::constant(1.0);  ///< true psi_f = motor.psi_f * scale(t) [-]
   Profile L_d_scale = Profile::constant(1.0);    ///< true L_d = motor.L_d * scale(t) [-] (e.g. an inter-turn fault)

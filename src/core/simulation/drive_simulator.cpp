@@ -67,8 +67,14 @@ SimulatedSample DriveSimulator::step() {
   const MotorParameters plant = trueMotorAt(t);
   const int p = nominal.pole_pairs;
 
+  // Torque control: a load machine holds the speed on its profile (a dyno); the speed loop is idle.
+  if (s.drive.torque_control) x_.omega_m = s.speed_reference_rpm(t) * 2.0 * M_PI / 60.0;
+
   SimulatedSample out;
   out.truth = plant.electrical();
+  out.magnetics = magneticState(plant, s.saturation, x_.i_d, x_.i_q);
+  if (s.saturation.enabled)  // what each estimate stands for at this operating point (doc/simulator.md)
+    out.truth = {plant.R_s, out.magnetics.L_dd, out.magnetics.L_q_secant, out.magnetics.psi_d_at_zero_i_d};
   out.i_d_true = x_.i_d;
   out.i_q_true = x_.i_q;
 
@@ -110,7 +116,9 @@ SimulatedSample DriveSimulator::step() {
   const double i_q_limit = std::sqrt(std::max(0.0, s.drive.max_current * s.drive.max_current - i_d_ref * i_d_ref));
   const double speed_error = s.speed_reference_rpm(t) * 2.0 * M_PI / 60.0 - omega_m_measured;
   double i_q_ref = kp_speed_ * speed_error + speed_integral_ + ki_speed_ * Ts * speed_error;
-  if (std::abs(i_q_ref) < i_q_limit) {
+  if (s.drive.torque_control) {
+    i_q_ref = std::clamp(s.q_current_reference(t), -i_q_limit, i_q_limit);
+  } else if (std::abs(i_q_ref) < i_q_limit) {
     speed_integral_ += ki_speed_ * Ts * speed_error;
   } else {
     i_q_ref = std::copysign(i_q_limit, i_q_ref);
@@ -177,7 +185,10 @@ SimulatedSample DriveSimulator::step() {
   const double h = Ts / n;
   const auto derivative = [&](const PlantState& x) {
     const Vec2 u = applied(x);
-    return plantDerivative(plant, x, u.x, u.y, out.load_torque);
+    PlantDerivative d = s.saturation.enabled ? saturatedPlantDerivative(plant, s.saturation, x, u.x, u.y, out.load_torque)
+                                             : plantDerivative(plant, x, u.x, u.y, out.load_torque);
+    if (s.drive.torque_control) d.domega_m = 0.0;  // held by the load machine
+    return d;
   };
   const auto add = [](const PlantState& a, const PlantDerivative& d, double k) {
     return PlantState{a.i_d + k * d.di_d, a.i_q + k * d.di_q, a.omega_m + k * d.domega_m, a.theta_e + k * d.dtheta_e};

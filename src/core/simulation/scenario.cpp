@@ -83,6 +83,17 @@ Scenario loadScenario(const std::string& path) {
     th.magnet_coefficient = y.number("thermal.magnet_coefficient", th.magnet_coefficient);
     if (!(th.magnet_coefficient < 0)) y.fail("thermal.magnet_coefficient", "must be < 0 [1/K]");
   }
+  if (y.has("saturation")) {
+    SaturationSettings& sat = s.saturation;
+    sat.enabled = true;
+    sat.q_saturation_current = y.number("saturation.q_saturation_current", 0.0);
+    if (sat.q_saturation_current < 0) y.fail("saturation.q_saturation_current", "must be >= 0 [A] (0 = linear q axis)");
+    sat.cross_saturation = y.number("saturation.cross_saturation", 0.0);
+    if (sat.cross_saturation < 0) y.fail("saturation.cross_saturation", "must be >= 0 [H/A]");
+  }
+  const std::string mode = y.text("drive.mode", "speed");
+  if (mode != "speed" && mode != "torque") y.fail("drive.mode", "expected speed or torque, got '" + mode + "'");
+  s.drive.torque_control = mode == "torque";
   s.duration = y.positive("run.duration");
   if (s.duration / s.drive.sample_period > 1e9) y.fail("run.duration", "more than 1e9 samples");
   const long seed = y.integer("run.seed", 1, 0, 1L << 53);
@@ -91,6 +102,9 @@ Scenario loadScenario(const std::string& path) {
   s.speed_reference_rpm = y.profile("profiles.speed_rpm");
   s.load_torque = y.profile("profiles.load_torque");
   s.d_current_injection = y.profile("profiles.d_current_injection", Profile::constant(0.0));
+  s.q_current_reference = y.profile("profiles.q_current_reference", Profile::constant(0.0));
+  if (s.drive.torque_control && !y.has("profiles.q_current_reference"))
+    y.fail("profiles.q_current_reference", "missing (drive.mode: torque sets i_q from it)");
   s.R_s_scale = y.profile("profiles.R_s_scale", Profile::constant(1.0));
   s.psi_f_scale = y.profile("profiles.psi_f_scale", Profile::constant(1.0));
   s.L_d_scale = y.profile("profiles.L_d_scale", Profile::constant(1.0));
