@@ -122,6 +122,9 @@ inline ParameterEstimate toMessage(const Estimate& e, const ros::Time& stamp, co
   m.magnet_temperature = e.magnet_temperature.value;
   m.magnet_temperature_uncertainty = e.magnet_temperature.uncertainty;
   m.fitness = e.fitness;
+  m.operating_i_d = e.operating_point.i_d;
+  m.operating_i_q = e.operating_point.i_q;
+  m.operating_omega_e = e.operating_point.omega_e;
   m.iteration = e.iteration;
   m.temperature = e.temperature;
   m.samples_used = e.counters.used;

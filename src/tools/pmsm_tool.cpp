@@ -50,6 +50,8 @@ json estimateJson(const Estimate& e) {
     j["relative_uncertainty"][name] = numberOrNull(e.relative_uncertainty[p]);
     j["data_optimum"][name] = e.fit.available ? numberOrNull(e.fit.optimum[p]) : json(nullptr);
   }
+  j["operating_point"] = {{"i_d", numberOrNull(e.operating_point.i_d)}, {"i_q", numberOrNull(e.operating_point.i_q)},
+                          {"omega_e", numberOrNull(e.operating_point.omega_e)}};
   j["fit"] = {{"consistent", e.fit.consistent},
               {"ratio_d", numberOrNull(e.fit.fit_ratio_d)},
               {"ratio_q", numberOrNull(e.fit.fit_ratio_q)},
@@ -126,6 +128,8 @@ void printEstimate(const Estimate& e, bool thermal_enabled = false) {
   }
   if (e.fit.inverter_modelled)
     std::printf("  inverter voltage = %.4g V %s %s\n", e.inverter_voltage, toString(e.inverter_status), e.inverter_reason.c_str());
+  std::printf("  operating point (window means): i_d = %.4g A, i_q = %.4g A, omega_e = %.4g rad/s\n", e.operating_point.i_d,
+              e.operating_point.i_q, e.operating_point.omega_e);
   std::printf("  sampling period %.4g s; fitness = %.4g A^2, samples = %llu, skipped = %llu, time resets = %llu, gaps = %llu\n",
               e.sample_period, e.fitness,
               static_cast<unsigned long long>(e.counters.used), static_cast<unsigned long long>(e.counters.skipped()),

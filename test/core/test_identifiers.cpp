@@ -343,3 +343,15 @@ TEST(Saturation, NoParameterIsConfidentlyWrongAtAnyLoad) {
     }
   }
 }
+
+// The operating point travels with each estimate: the window's mean currents and speed.
+TEST(Saturation, TheOperatingPointTravelsWithTheEstimate) {
+  Scenario s = test_helpers::scenario("saturated_ipmsm.yaml");
+  s.q_current_reference = Profile::constant(6.0);
+  s.duration = 0.5;
+  const auto data = test_helpers::run(s);
+  const Estimate e = identify(data, "rls");
+  EXPECT_NEAR(e.operating_point.i_q, 6.0, 0.05);
+  EXPECT_NEAR(e.operating_point.i_d, 0.0, 0.1);  // a 1 A sine averages out over the window
+  EXPECT_NEAR(e.operating_point.omega_e, 3 * 900.0 * 2 * M_PI / 60.0, 1e-6);
+}

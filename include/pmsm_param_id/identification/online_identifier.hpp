@@ -4,6 +4,7 @@
 // statistics, the data-driven search box and the assessment of every estimate.
 #pragma once
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -34,6 +35,14 @@ struct IdentifierCounters {
   std::uint64_t skipped() const { return skipped_nonfinite + skipped_duplicate + skipped_too_close; }
 };
 
+/// Where the motor was while the window's data were taken (what a saturating machine's estimates
+/// stand for: doc/algorithm.md section 11).
+struct OperatingPoint {
+  double i_d = std::numeric_limits<double>::quiet_NaN();      ///< window mean of i_d [A]
+  double i_q = std::numeric_limits<double>::quiet_NaN();      ///< window mean of i_q [A]
+  double omega_e = std::numeric_limits<double>::quiet_NaN();  ///< window mean of omega_e [rad/s]
+};
+
 struct Estimate {
   std::string method;
   double t = 0.0;                   ///< stamp of the last sample used [s]
@@ -49,6 +58,7 @@ struct Estimate {
   double inverter_relative_uncertainty = 0.0;  ///< [-]
   Temperature winding_temperature;  ///< from R_s while identified (thermal: block), else NaN [degC]
   Temperature magnet_temperature;   ///< from psi_f while identified (thermal: block), else NaN [degC]
+  OperatingPoint operating_point;   ///< means over the fitness window (its forgetting time constant)
   double fitness = 0.0;             ///< the method's fitness at the estimate [A^2] (block, or paper: section 10)
   double sample_period = 0.0;       ///< nominal sampling period in use [s] (0 while unknown)
   std::uint64_t iteration = 0;      ///< swarm iterations (0 for ekf, rls)
@@ -131,7 +141,9 @@ class OnlineIdentifier {
   bool have_watched_ = false;
   mutable std::uint64_t fit_blocks_ = ~0ull;  // block count of the cached fit
   mutable FitCheck fit_cache_;
-  mutable double learned_R_reference_ = 0.0, learned_psi_reference_ = 0.0;  // thermal references learnt at the start
+  mutable double learned_R_reference_ = 0.0, learned_psi_reference_ = 0.0;
+  OperatingPoint operating_point_;         // exponentially forgotten means, as the fitness window
+  double operating_alpha_ = 0.0, operating_alpha_tau_ = -1.0;  // thermal references learnt at the start
 };
 
 /// Builds the identifier named by config.method. ConfigError on an unknown method or bad values.

@@ -59,6 +59,8 @@ void OnlineIdentifier::reset() {
   noise_std_ = 0.0;
   fit_blocks_ = ~0ull;
   learned_R_reference_ = learned_psi_reference_ = 0.0;
+  operating_point_ = OperatingPoint{};
+  operating_alpha_tau_ = -1.0;
   samples_since_refresh_ = 0;
   have_watched_ = false;
 }
@@ -129,6 +131,20 @@ SampleStatus OnlineIdentifier::admit(const Sample& s, bool check_step, SampleSta
 
 SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status) {
   const bool new_block = stats_.add(s);
+  // The operating point: means forgotten with the fitness window's time constant.
+  const double tau = stats_.forgettingTimeConstant();
+  if (tau != operating_alpha_tau_ && tau > 0) {
+    operating_alpha_ = 1.0 - std::exp(-period_.nominal() / tau);
+    operating_alpha_tau_ = tau;
+  }
+  OperatingPoint& op = operating_point_;
+  if (std::isnan(op.i_d)) {
+    op = {s.i_d, s.i_q, s.omega_e};
+  } else {
+    op.i_d += operating_alpha_ * (s.i_d - op.i_d);
+    op.i_q += operating_alpha_ * (s.i_q - op.i_q);
+    op.omega_e += operating_alpha_ * (s.omega_e - op.omega_e);
+  }
   if (!box_.valid && new_block) tryStart();
   if (box_.valid) update(s, new_block, broken_);
   broken_ = false;
@@ -316,6 +332,7 @@ Estimate OnlineIdentifier::estimate() const {
   bool positive = true;
   for (double v : e.parameters) positive = positive && std::isfinite(v) && v > 0;
   e.fitness = positive ? fitnessAt(e.parameters) : std::numeric_limits<double>::quiet_NaN();
+  e.operating_point = operating_point_;
   return e;
 }
 
