@@ -56,12 +56,17 @@ struct FitCheck {
   bool inverter_modelled = false;  ///< the fit estimated an inverter voltage error V with the four
   double inverter_voltage = 0.0;   ///< V [V] (pole-voltage error amplitude, V_dc t_dead f_sw + drop)
   double inverter_relative_std = std::numeric_limits<double>::infinity();  ///< of V [-]
+  bool cross_saturation_modelled = false;  ///< the fit estimated L_qq and L_dq (magnetics.cross_saturation)
+  double L_qq = NAN, L_dq = NAN;           ///< incremental q and cross-saturation inductances [H]
+  double L_qq_std = NAN, L_dq_std = NAN;   ///< their standard deviations [H] (inf: undetermined)
 };
 
 /// Exact fit of the window starting from `start` (positive inductances), and its check.
 /// estimate_inverter: fit V with the four parameters (start value inverter_start).
+/// estimate_cross_saturation: fit L_qq and L_dq with the four (section 11); excludes estimate_inverter.
 FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& settings, const ParameterVector& start,
-                  bool diagnose, bool estimate_inverter = false, double inverter_start = 0.0);
+                  bool diagnose, bool estimate_inverter = false, double inverter_start = 0.0,
+                  bool estimate_cross_saturation = false);
 
 /// Status of the estimated inverter voltage: identified within max_relative_uncertainty, or why not.
 struct InverterAssessment {

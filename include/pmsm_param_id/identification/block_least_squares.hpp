@@ -11,7 +11,8 @@
 //   speed scale: the inductances and the flux in the speed terms are free (a speed logged in rpm
 //                or mechanical rad/s, or time in ms, shows as their ratio to the Di terms);
 //   delay:       a multiple a of int(u_k - u_k-1) (a = 1: the voltage acts one sample late);
-//   inverter:    a voltage V along the current vector (dead time, device drops).
+//   inverter:    a voltage V along the current vector (dead time, device drops);
+//   cross saturation: the incremental L_qq and the cross inductance L_dq of a saturating machine.
 #pragma once
 #include <Eigen/Core>
 #include <string>
@@ -36,6 +37,13 @@ struct LinearBlockModel {
   static const LinearBlockModel& delay();        ///< + {a}: voltage delay [samples]
   static const LinearBlockModel& inverter();     ///< + {V}: inverter voltage along the current [V]
   static const LinearBlockModel& inverterWide(); ///< the same with twice the zero-crossing width
+  /// + {L_qq, L_dq}: a saturating machine at its operating point; L_q is then the secant inductance
+  /// (speed term only), L_qq the incremental one (Di_q), L_dq the cross-saturation (section 11).
+  static const LinearBlockModel& crossSaturation();
+  /// The same with L_d free in the speed term (the unit check on a saturating machine).
+  static const LinearBlockModel& crossSaturationSpeedScale();
+  /// Any model + {L_qq, L_dq} (appended after its own parameters).
+  static LinearBlockModel withCrossSaturation(const LinearBlockModel& model);
 };
 
 struct BlockFit {

@@ -53,6 +53,8 @@ enum BlockEntryD : int {
   kIntegralInverterD,    ///< int s_d dt [s]: shape of the inverter voltage error (see below)
   kIntegralUdStep,       ///< int (u_d,k - u_d,k-1) dt [V s] (delay diagnosis)
   kIntegralInverterWideD,  ///< int s_d dt with twice the zero-crossing width (model sensitivity) [s]
+  kDeltaIqInD,           ///< i_q(t_k) - i_q(t_j) [A] (cross-saturation: L_dq di_q/dt in the d axis)
+  kIntegralOmegaIdInD,   ///< int omega_e i_d dt [A] (cross-saturation: omega_e L_dq i_d in psi_q)
   kBlockSizeD
 };
 /// Entries of the q-axis block vector.
@@ -65,6 +67,7 @@ enum BlockEntryQ : int {
   kIntegralInverterQ,    ///< int s_q dt [s]
   kIntegralUqStep,       ///< [V s]
   kIntegralInverterWideQ,  ///< [s]
+  kDeltaIdInQ,           ///< i_d(t_k) - i_d(t_j) [A] (cross-saturation: L_dq di_d/dt in the q axis)
   kBlockSizeQ
 };
 using BlockD = Eigen::Matrix<double, kBlockSizeD, 1>;
@@ -134,10 +137,20 @@ class BlockStatistics {
     }
     return std::max(0.0, 2.0 * f / stored_weight_);
   }
+  /// The same with the cross-saturation terms of a saturating machine (doc/algorithm.md section 11):
+  /// L_dq and the incremental L_qq known (profiled by the data's exact fit), p[kLq] the secant
+  /// inductance (it enters through omega_e psi_q only), p[kPsiF] the flux psi_d(0, i_q).
+  double fitnessWithCrossSaturation(const ParameterVector& p) const;
 
   /// The inverter voltage the fitness subtracts (0: none) [V]; set from the data's exact fit.
   void setInverterVoltage(double v) { inverter_voltage_ = v; }
   double inverterVoltage() const { return inverter_voltage_; }
+  /// Known cross-saturation inductance L_dq and incremental q inductance L_qq [H] (0: linear model);
+  /// set from the data's exact fit when magnetics.cross_saturation is on.
+  void setCrossSaturation(double L_dq, double L_qq) { cross_L_dq_ = L_dq; cross_L_qq_ = L_qq; }
+  bool crossSaturationSet() const { return cross_L_qq_ > 0; }
+  double crossLdq() const { return cross_L_dq_; }
+  double crossLqq() const { return cross_L_qq_; }
   bool hasBlocks() const { return weight_ > 0; }
   /// Sum of the forgetting weights of the blocks in the window [-] (the effective block count).
   double weight() const { return weight_; }
@@ -192,6 +205,7 @@ class BlockStatistics {
   double weight_ = 0.0, difference_weight_ = 0.0;
   std::uint64_t blocks_ = 0;
   double inverter_voltage_ = 0.0;
+  double cross_L_dq_ = 0.0, cross_L_qq_ = 0.0;
   bool have_previous_block_ = false;
   ProductD long_d_ = ProductD::Zero();
   ProductQ long_q_ = ProductQ::Zero();

@@ -51,6 +51,14 @@ struct InverterModelSettings {
   double max_relative_uncertainty = 0.05;  ///< V is identified within this [-]
 };
 
+/// What the identifier assumes about the machine's magnetics (doc/algorithm.md section 11).
+struct MagneticsModelSettings {
+  /// Fit the incremental L_qq and the cross-saturation L_dq with the four (a saturating interior-PM
+  /// machine): L_d is then the incremental d inductance, L_q the secant psi_q / i_q, psi_f the flux
+  /// psi_d at i_d = 0, and R_s is told from omega_e L_dq through the q axis's response to i_d.
+  bool cross_saturation = false;
+};
+
 struct TimeSettings {
   double sample_period = 0.0;   ///< nominal sampling period [s]; 0 = median of the stream's steps
   double max_gap_periods = 3.0; ///< a step longer than this many nominal periods is a gap [-]
@@ -73,6 +81,7 @@ struct IdentifierConfig {
   AssessmentSettings assessment;
   TimeSettings time;
   InverterModelSettings inverter;
+  MagneticsModelSettings magnetics;
   ThermalSettings thermal;
   AlarmSettings alarms;
 };

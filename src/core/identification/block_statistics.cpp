@@ -199,9 +199,9 @@ bool BlockStatistics::add(const Sample& s) {
   BlockD zd;
   BlockQ zq;
   zd << c.i_d - a.i_d, c.I_d - a.I_d, c.OmIq - a.OmIq, c.U_d - a.U_d, c.Inv_d - a.Inv_d, c.Ustep_d - a.Ustep_d,
-      c.Wide_d - a.Wide_d;
+      c.Wide_d - a.Wide_d, c.i_q - a.i_q, c.OmId - a.OmId;
   zq << c.i_q - a.i_q, c.I_q - a.I_q, c.OmId - a.OmId, c.U_q - a.U_q, c.Om - a.Om, c.Inv_q - a.Inv_q,
-      c.Ustep_q - a.Ustep_q, c.Wide_q - a.Wide_q;
+      c.Ustep_q - a.Ustep_q, c.Wide_q - a.Wide_q, c.i_d - a.i_d;
   // Forgetting: every stored sum is implicitly multiplied by lambda; new terms enter with scale_.
   scale_ /= lambda_;
   rankOneUpper(S_d_, zd, scale_);
@@ -299,6 +299,44 @@ ProductD BlockStatistics::meanDifferenceProductD() const {
 ProductQ BlockStatistics::meanDifferenceProductQ() const {
   if (stored_difference_weight_ <= 0) return ProductQ::Zero();
   return ProductQ(dS_q_.selfadjointView<Eigen::Upper>()) / stored_difference_weight_;
+}
+
+double BlockStatistics::fitnessWithCrossSaturation(const ParameterVector& p) const {
+  if (weight_ <= 0) return std::numeric_limits<double>::infinity();
+  const double inv_Ld = 1.0 / p[kLd], inv_Lqq = 1.0 / cross_L_qq_, Ldq = cross_L_dq_;
+  const double V = inverter_voltage_;
+  // r_d = [L_dd Di_d + L_dq (Di_q - int omega i_d) + R int i_d - L_q int omega i_q - int u_d] / L_dd
+  // r_q = [L_qq Di_q + L_dq Di_d + R int i_q + L_dd int omega i_d + psi int omega - int u_q] / L_qq
+  std::array<double, kBlockSizeD> wd{};
+  std::array<double, kBlockSizeQ> wq{};
+  wd[kDeltaId] = 1.0;
+  wd[kIntegralId] = p[kRs] * inv_Ld;
+  wd[kIntegralOmegaIq] = -p[kLq] * inv_Ld;
+  wd[kIntegralUd] = -inv_Ld;
+  wd[kIntegralInverterD] = V * inv_Ld;
+  wd[kDeltaIqInD] = Ldq * inv_Ld;
+  wd[kIntegralOmegaIdInD] = -Ldq * inv_Ld;
+  wq[kDeltaIq] = 1.0;
+  wq[kIntegralIq] = p[kRs] * inv_Lqq;
+  wq[kIntegralOmegaId] = p[kLd] * inv_Lqq;
+  wq[kIntegralUq] = -inv_Lqq;
+  wq[kIntegralOmega] = p[kPsiF] * inv_Lqq;
+  wq[kIntegralInverterQ] = V * inv_Lqq;
+  wq[kDeltaIdInQ] = Ldq * inv_Lqq;
+  double f = 0.0;
+  for (int i = 0; i < kBlockSizeD; ++i) {
+    if (wd[static_cast<std::size_t>(i)] == 0.0) continue;
+    double row = 0.5 * S_d_(i, i) * wd[static_cast<std::size_t>(i)];
+    for (int j = i + 1; j < kBlockSizeD; ++j) row += S_d_(i, j) * wd[static_cast<std::size_t>(j)];
+    f += wd[static_cast<std::size_t>(i)] * row;
+  }
+  for (int i = 0; i < kBlockSizeQ; ++i) {
+    if (wq[static_cast<std::size_t>(i)] == 0.0) continue;
+    double row = 0.5 * S_q_(i, i) * wq[static_cast<std::size_t>(i)];
+    for (int j = i + 1; j < kBlockSizeQ; ++j) row += S_q_(i, j) * wq[static_cast<std::size_t>(j)];
+    f += wq[static_cast<std::size_t>(i)] * row;
+  }
+  return std::max(0.0, 2.0 * f / stored_weight_);
 }
 
 }  // namespace pmsm_param_id

@@ -17,6 +17,8 @@ void validate(const IdentifierConfig& c, const std::string& source) {
     throw ConfigError(source + ": key '" + key + "': " + msg);
   };
   if (!isKnownMethod(c.method)) fail("method", "unknown method '" + c.method + "' (expected " + methodList() + ")");
+  if (c.magnetics.cross_saturation && c.inverter.estimate_voltage)
+    fail("magnetics.cross_saturation", "not together with inverter.model: estimate (not supported yet)");
   for (int p = 0; p < kParameterCount; ++p) {
     const std::string name = parameterNames()[p];
     if (c.search.fixed_bounds) {
@@ -96,6 +98,7 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   c.swarm.restart_velocity = y.number("swarm.restart_velocity", c.swarm.restart_velocity);
   c.iterations_per_sample =
       static_cast<int>(y.integer("swarm.iterations_per_sample", c.iterations_per_sample, 1, 10000));
+  c.magnetics.cross_saturation = y.flag("magnetics.cross_saturation", c.magnetics.cross_saturation);
   const std::string fitness = y.text("fitness", toString(c.fitness));
   if (!fitnessKindFrom(fitness, c.fitness)) y.fail("fitness", "expected block, paper or paper_one_step, got '" + fitness + "'");
   c.fitness_window_samples =

@@ -186,7 +186,8 @@ bool OnlineIdentifier::tryStart() {
   } else if (search.has_initial) {
     setBox(search.initial);
   } else {
-    const FitCheck fit = checkFit(stats_, config_.assessment, kGenericCentre, false, config_.inverter.estimate_voltage);
+    const FitCheck fit = checkFit(stats_, config_.assessment, kGenericCentre, false, config_.inverter.estimate_voltage, 0.0,
+                                  config_.magnetics.cross_saturation);
     if (!fit.available) return false;
     const auto usable = [&](int p) {
       return fit.determined[p] && fit.relative_std[p] <= kCentringRelativeStd && plausible(p, fit.optimum[p]);
@@ -206,6 +207,9 @@ bool OnlineIdentifier::tryStart() {
 }
 
 void OnlineIdentifier::useInverterVoltage(const FitCheck& fit) {
+  // The same for a saturating machine's L_qq and L_dq (the swarm's fitness takes them as known).
+  if (fit.cross_saturation_modelled && std::isfinite(fit.L_qq) && fit.L_qq > 0 && std::isfinite(fit.L_dq))
+    stats_.setCrossSaturation(fit.L_dq, fit.L_qq);
   // The swarm's fitness (and RLS, EKF) take the data's estimate of the inverter voltage as known:
   // the paper's swarm searches four dimensions; V is profiled out by the exact fit.
   if (!fit.inverter_modelled) return;
@@ -216,7 +220,7 @@ void OnlineIdentifier::useInverterVoltage(const FitCheck& fit) {
 bool OnlineIdentifier::refreshSearchBox() {
   if (!box_.valid || config_.search.fixed_bounds || !stats_.hasBlocks()) return false;
   const FitCheck fit = checkFit(stats_, config_.assessment, box_.centre, false, config_.inverter.estimate_voltage,
-                                stats_.inverterVoltage());
+                                stats_.inverterVoltage(), config_.magnetics.cross_saturation);
   if (!fit.available) return false;
   noise_std_ = std::max(fit.noise_std_d, fit.noise_std_q);
   useInverterVoltage(fit);
@@ -275,9 +279,10 @@ Estimate OnlineIdentifier::estimate() const {
                       stats_.blocks() - fit_blocks_ >= stale_after || !fit_cache_.available;
   const bool inverter = config_.inverter.estimate_voltage;
   const double v_start = fit_cache_.inverter_modelled && std::isfinite(fit_cache_.inverter_voltage) ? fit_cache_.inverter_voltage : 0.0;
+  const bool cross = config_.magnetics.cross_saturation;
   FitCheck fit = checkFit(stats_, config_.assessment, fit_cache_.available ? fit_cache_.optimum : start, retest, inverter,
-                          v_start);
-  if (!fit.available && fit_cache_.available) fit = checkFit(stats_, config_.assessment, start, retest, inverter);
+                          v_start, cross);
+  if (!fit.available && fit_cache_.available) fit = checkFit(stats_, config_.assessment, start, retest, inverter, 0.0, cross);
   if (retest) {
     fit_blocks_ = stats_.blocks();
     fit_cache_ = fit;
@@ -337,7 +342,8 @@ Estimate OnlineIdentifier::estimate() const {
 }
 
 double OnlineIdentifier::fitnessAt(const ParameterVector& p) const {
-  return stats_.hasBlocks() ? stats_.fitness(p) : std::numeric_limits<double>::quiet_NaN();
+  if (!stats_.hasBlocks()) return std::numeric_limits<double>::quiet_NaN();
+  return stats_.crossSaturationSet() ? stats_.fitnessWithCrossSaturation(p) : stats_.fitness(p);
 }
 
 }  // namespace pmsm_param_id

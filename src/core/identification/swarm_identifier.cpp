@@ -64,7 +64,8 @@ void SwarmIdentifier::update(const Sample& s, bool, bool continuity_broken) {
   }
   if (!stats_.hasBlocks() || !swarm_) return;
   const BlockStatistics& stats = stats_;
-  iterate([&stats](const ParameterVector& p) { return stats.fitness(p); });
+  if (stats.crossSaturationSet()) iterate([&stats](const ParameterVector& p) { return stats.fitnessWithCrossSaturation(p); });
+  else iterate([&stats](const ParameterVector& p) { return stats.fitness(p); });
 }
 
 template <class F>
@@ -93,7 +94,7 @@ ParameterVector WlsIdentifier::current() const {
   if (stats_.blocks() == blocks_at_fit_) return parameters_;
   blocks_at_fit_ = stats_.blocks();
   const FitCheck fit = checkFit(stats_, config_.assessment, parameters_, false, config_.inverter.estimate_voltage,
-                                stats_.inverterVoltage());
+                                stats_.inverterVoltage(), config_.magnetics.cross_saturation);
   if (!fit.available) return parameters_;
   for (int p = 0; p < kParameterCount; ++p)
     if (fit.determined[p] && plausible(p, fit.optimum[p])) parameters_[p] = fit.optimum[p];
