@@ -397,8 +397,9 @@ void printMonitor(const std::vector<std::string>& methods, const std::vector<std
 /// bench --fitness paper: the reference optimum of each seed's final window and each method's gap to it.
 void printReference(const std::vector<std::string>& methods, const std::vector<std::vector<RunResult>>& results,
                     const std::vector<ReferenceOptimum>& references, const IdentifierConfig& config) {
+  const int window_samples = config.fitness == FitnessKind::PaperOneStep ? 2 : config.fitness_window_samples;
   std::printf("\nReference optimum of the %s fitness (N = %d samples) over each seed's final window: Ceres "
-              "(Levenberg-Marquardt) started at the truth\n", toString(config.fitness), config.fitness_window_samples);
+              "(Levenberg-Marquardt) started at the truth\n", toString(config.fitness), window_samples);
   int available = 0;
   for (const auto& r : references) available += r.available;
   if (available == 0) {
