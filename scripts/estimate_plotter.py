@@ -6,7 +6,8 @@ LINE_STRIPs (x = time, y = value) with axes, tick labels, a legend and the curre
 in the fixed frame "plot" (no TF needed), for rviz/monitor.rviz's top-down orthographic view.
 Beside the fitness: the winding and magnet temperatures (thick: winding, thin: magnet; black:
 truth) when the identifiers carry them (a thermal: block), and the condition monitor's alarms
-(~namespace/METHOD/events): every active alarm in red, or "no alarm active".
+(~namespace/METHOD/events): every active alarm in red, or "no alarm active", and below them the
+latest five raises and clears (grey), newest first.
 
 Parameters:
   ~methods (list of str)   methods to draw (default fbdapso, sapso, pso, ekf, rls)
@@ -57,6 +58,7 @@ class PlotState:
         self.temperatures = {m: deque() for m in self.methods}  # (t, winding, magnet) [degC], NaN = unknown
         self.truth_temperatures = deque()                    # (t, winding, magnet) [degC]
         self.active_alarms = {}                              # (method, kind): (t, text)
+        self.alarm_log = deque(maxlen=5)                     # the latest raises and clears, newest last
 
     def add_estimate(self, method, t, values, identifiable, fitness, status=None, temperatures=None):
         if method not in self.series:
@@ -90,6 +92,7 @@ class PlotState:
             self.active_alarms[(method, kind)] = (t, text)
         else:
             self.active_alarms.pop((method, kind), None)
+        self.alarm_log.append((t, method, kind, raised))
 
     def _trim(self, q, now):
         while len(q) > 2 and q[0][0] < now - self.window:
@@ -285,6 +288,12 @@ def draw_monitor(state, panel, marker, text, xy, arr):
     for label in labels[:6]:
         text("alarms", ox + PANEL_W + 0.3 + 0.5 * 0.6 * LEGEND_SIZE * len(label), oy + PANEL_H - 0.35 - 0.5 * legend_row,
              label, LEGEND_SIZE, ALARM_RED if alarms else OK_GREEN)
+        legend_row += 1
+    # the timeline: the latest raises and clears, newest first
+    for t, m, kind, raised in reversed(state.alarm_log):
+        label = "%.2f s %s %s %s" % (t, m, kind, "raised" if raised else "cleared")
+        text("alarm_log", ox + PANEL_W + 0.3 + 0.5 * 0.6 * LEGEND_SIZE * len(label), oy + PANEL_H - 0.35 - 0.5 * legend_row,
+             label, LEGEND_SIZE, GREY)
         legend_row += 1
 
 

@@ -120,6 +120,8 @@ class Monitoring(unittest.TestCase):
         state.add_event(1.9, "fbdapso", "demagnetisation", False, "psi_f consistent with heat")
         by_ns, _ = self.build(state)
         self.assertEqual([m.text for m in by_ns["alarms"]], ["no alarm active"])
+        self.assertEqual([m.text for m in by_ns["alarm_log"]],  # the timeline, newest first
+                         ["1.90 s fbdapso demagnetisation cleared", "1.50 s fbdapso demagnetisation raised"])
 
     def test_no_temperature_panel_without_temperatures(self):
         state = plotter.PlotState(window=1.0, methods=["fbdapso"])
