@@ -599,6 +599,16 @@ TEST(Thermal, ReferencesAreLearntAtADeclaredColdStart) {
   auto quiet = makeIdentifier(cc);
   for (const auto& d : data) quiet->process(d.sample);
   EXPECT_NEAR(quiet->estimate().winding_temperature.value, 25.0 + 0.1 / 3.93e-3, 3.0);
+  // Nothing is learnt after learning_time: a motor identified late may be hot already, and its
+  // temperatures stay unknown instead of being read from a hot reference.
+  IdentifierConfig late = cc;
+  late.thermal.learning_time = 0.004;  // before the first block is complete
+  auto unlearnt = makeIdentifier(late);
+  for (const auto& d : data) unlearnt->process(d.sample);
+  const Estimate e = unlearnt->estimate();
+  EXPECT_TRUE(e.identifiable[kRs]) << e.reason[kRs];
+  EXPECT_TRUE(std::isnan(e.winding_temperature.value));
+  EXPECT_TRUE(std::isnan(e.magnet_temperature.value));
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -143,6 +143,7 @@ class OnlineIdentifier {
   mutable FitCheck fit_cache_;
   mutable double learned_R_reference_ = 0.0, learned_psi_reference_ = 0.0;
   OperatingPoint operating_point_;         // exponentially forgotten means, as the fitness window
+  double first_sample_t_ = std::numeric_limits<double>::quiet_NaN();  // of the run (thermal learning)
   double operating_alpha_ = 0.0, operating_alpha_tau_ = -1.0;  // thermal references learnt at the start
 };
 

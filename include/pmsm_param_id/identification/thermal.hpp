@@ -16,6 +16,9 @@ struct ThermalSettings {
   double psi_f_at_reference = 0.0;      ///< [Wb]; 0 = learn from the first identified value
   double copper_coefficient = 3.93e-3;  ///< alpha [1/K]
   double magnet_coefficient = -1.2e-3;  ///< beta [1/K] (NdFeB; ferrite about -2e-3)
+  /// A learnt reference is taken only this long after the first sample [s]: later the motor may
+  /// no longer be at reference_temperature, and the temperatures stay unknown.
+  double learning_time = 5.0;
 };
 
 struct Temperature {

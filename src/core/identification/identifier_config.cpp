@@ -155,6 +155,7 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
     t.copper_coefficient = y.positive("thermal.copper_coefficient", t.copper_coefficient);
     t.magnet_coefficient = y.number("thermal.magnet_coefficient", t.magnet_coefficient);
     if (!(t.magnet_coefficient < 0)) y.fail("thermal.magnet_coefficient", "must be < 0 [1/K] (magnets weaken when hot)");
+    t.learning_time = y.positive("thermal.learning_time", t.learning_time);
   }
   AlarmSettings& al = c.alarms;
   al.winding_max_temperature = y.number("alarms.winding_max_temperature", al.winding_max_temperature);

@@ -60,6 +60,7 @@ void OnlineIdentifier::reset() {
   fit_blocks_ = ~0ull;
   learned_R_reference_ = learned_psi_reference_ = 0.0;
   operating_point_ = OperatingPoint{};
+  first_sample_t_ = std::numeric_limits<double>::quiet_NaN();
   operating_alpha_tau_ = -1.0;
   samples_since_refresh_ = 0;
   have_watched_ = false;
@@ -130,6 +131,7 @@ SampleStatus OnlineIdentifier::admit(const Sample& s, bool check_step, SampleSta
 }
 
 SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status) {
+  if (std::isnan(first_sample_t_)) first_sample_t_ = s.t;
   const bool new_block = stats_.add(s);
   // The operating point: means forgotten with the fitness window's time constant.
   const double tau = stats_.forgettingTimeConstant();
@@ -158,8 +160,9 @@ SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status
   // A declared cold start: the thermal references are the first identified values, whether or not
   // anybody asks for an estimate then (checked once per block length until both are learnt).
   const ThermalSettings& th = config_.thermal;
-  const bool learning = th.enabled && ((th.R_s_at_reference == 0.0 && learned_R_reference_ == 0.0) ||
-                                       (th.psi_f_at_reference == 0.0 && learned_psi_reference_ == 0.0));
+  const bool learning = th.enabled && s.t - first_sample_t_ <= th.learning_time &&
+                        ((th.R_s_at_reference == 0.0 && learned_R_reference_ == 0.0) ||
+                         (th.psi_f_at_reference == 0.0 && learned_psi_reference_ == 0.0));
   if (learning && new_block && box_.valid && stats_.blocks() % static_cast<std::uint64_t>(stats_.blockSamples()) == 0)
     estimate();
   return status;
@@ -319,12 +322,20 @@ Estimate OnlineIdentifier::estimate() const {
   for (int p = 0; p < kParameterCount; ++p) e.identifiable[p] = e.status[p] == ParameterStatus::Identified;
   const ThermalSettings& th = config_.thermal;
   if (th.enabled) {
-    // References: configured, or the first identified values (a declared cold start at
-    // reference_temperature).
-    if (th.R_s_at_reference == 0.0 && learned_R_reference_ == 0.0 && e.identifiable[kRs])
-      learned_R_reference_ = e.parameters[kRs];
-    if (th.psi_f_at_reference == 0.0 && learned_psi_reference_ == 0.0 && e.identifiable[kPsiF])
-      learned_psi_reference_ = e.parameters[kPsiF];
+    // References: configured, or learnt at a declared cold start at reference_temperature: the
+    // data's exact optimum (the same for every method) the first time the data determine the
+    // parameter to the identification threshold with a consistent fit, within learning_time of the
+    // first sample. A method that identifies late would otherwise take a hot motor's value.
+    const bool early = e.t - first_sample_t_ <= th.learning_time;
+    const auto learnable = [&](int p) {
+      return early && e.fit.available && e.fit.consistent && e.fit.determined[p] &&
+             config_.assessment.confidence_sigmas * e.fit.relative_std[p] <= config_.assessment.max_relative_uncertainty &&
+             plausible(p, e.fit.optimum[p]);
+    };
+    if (th.R_s_at_reference == 0.0 && learned_R_reference_ == 0.0 && learnable(kRs))
+      learned_R_reference_ = e.fit.optimum[kRs];
+    if (th.psi_f_at_reference == 0.0 && learned_psi_reference_ == 0.0 && learnable(kPsiF))
+      learned_psi_reference_ = e.fit.optimum[kPsiF];
     const double R_ref = th.R_s_at_reference > 0 ? th.R_s_at_reference : learned_R_reference_;
     const double psi_ref = th.psi_f_at_reference > 0 ? th.psi_f_at_reference : learned_psi_reference_;
     if (e.identifiable[kRs])
