@@ -102,7 +102,7 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   const std::string fitness = y.text("fitness", toString(c.fitness));
   if (!fitnessKindFrom(fitness, c.fitness)) y.fail("fitness", "expected block, paper or paper_one_step, got '" + fitness + "'");
   c.fitness_window_samples =
-      static_cast<int>(y.integer("fitness_window_samples", c.fitness_window_samples, 2, 10000000));
+      static_cast<int>(y.integer("fitness_window_samples", c.fitness_window_samples, 2, 1000000));
   c.sapso_T1 = y.number("sapso.T1", c.sapso_T1);
   c.sapso_C1 = y.number("sapso.C1", c.sapso_C1);
   c.fbdapso_T1 = y.number("fbdapso.T1", c.fbdapso_T1);
