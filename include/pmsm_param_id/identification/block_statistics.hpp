@@ -122,20 +122,22 @@ class BlockStatistics {
     const double V = inverter_voltage_;
     const double wd[5] = {1.0, p[kRs] * inv_Ld, -p[kLq] * inv_Ld, -inv_Ld, V * inv_Ld};
     const double wq[6] = {1.0, p[kRs] * inv_Lq, p[kLd] * inv_Lq, -inv_Lq, p[kPsiF] * inv_Lq, V * inv_Lq};
-    const int nd = V != 0.0 ? 5 : 4, nq = V != 0.0 ? 6 : 5;
-    // Quadratic forms on the upper triangles (the lower ones are not maintained).
-    double f = 0.0;
-    for (int i = 0; i < nd; ++i) {
-      double row = 0.5 * S_d_(i, i) * wd[i];
-      for (int j = i + 1; j < nd; ++j) row += S_d_(i, j) * wd[j];
-      f += wd[i] * row;
-    }
-    for (int i = 0; i < nq; ++i) {
-      double row = 0.5 * S_q_(i, i) * wq[i];
-      for (int j = i + 1; j < nq; ++j) row += S_q_(i, j) * wq[j];
-      f += wq[i] * row;
-    }
+    // Quadratic forms on the upper triangles (the lower ones are not maintained), with the trip
+    // counts fixed at compile time so that the compiler unrolls them.
+    // (The q form continues the d form's sum: the same order of additions as one loop over both.)
+    const double f = V != 0.0 ? upperForm<6>(S_q_, wq, upperForm<5>(S_d_, wd, 0.0))
+                              : upperForm<5>(S_q_, wq, upperForm<4>(S_d_, wd, 0.0));
     return std::max(0.0, 2.0 * f / stored_weight_);
+  }
+  /// f + sum_i w_i (S_ii w_i / 2 + sum_{j > i} S_ij w_j) over the first N entries.
+  template <int N, class Matrix>
+  static double upperForm(const Matrix& S, const double* w, double f) {
+    for (int i = 0; i < N; ++i) {
+      double row = 0.5 * S(i, i) * w[i];
+      for (int j = i + 1; j < N; ++j) row += S(i, j) * w[j];
+      f += w[i] * row;
+    }
+    return f;
   }
   /// The same with the cross-saturation terms of a saturating machine (doc/algorithm.md section 11):
   /// L_dq and the incremental L_qq known (profiled by the data's exact fit), p[kLq] the secant
