@@ -63,7 +63,9 @@ class Pipeline(unittest.TestCase):
         cls.live = os.path.join(cls.tmp, "live.bag")
         cls.replayed = os.path.join(cls.tmp, "replayed.bag")
         cls.live_log = roslaunch("demo.launch", "duration:=0.5", "bag:=" + cls.live)
-        cls.replay_log = roslaunch("replay.launch", "bag:=" + cls.live, "out_bag:=" + cls.replayed)
+        # Half speed: on a loaded 2-core machine five identifiers at full speed can still be draining
+        # their queues when the launch ends 2 s after the bag (measured: 466 of 495 estimates).
+        cls.replay_log = roslaunch("replay.launch", "bag:=" + cls.live, "out_bag:=" + cls.replayed, "rate:=0.5")
 
     def test_bag_holds_every_sample_at_10khz(self):
         n, expected_index, period, prev_stamp, prev_len = 0, 0, None, None, 0

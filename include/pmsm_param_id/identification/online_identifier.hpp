@@ -142,6 +142,10 @@ class OnlineIdentifier {
   mutable std::uint64_t fit_blocks_ = ~0ull;  // block count of the cached fit
   mutable FitCheck fit_cache_;
   mutable double learned_R_reference_ = 0.0, learned_psi_reference_ = 0.0;
+  struct PendingReference {
+    double t = -1.0, value = 0.0;  // a candidate reference and when it was seen
+  };
+  mutable PendingReference pending_R_reference_, pending_psi_reference_;
   OperatingPoint operating_point_;         // exponentially forgotten means, as the fitness window
   double first_sample_t_ = std::numeric_limits<double>::quiet_NaN();  // of the run (thermal learning)
   double operating_alpha_ = 0.0, operating_alpha_tau_ = -1.0;  // thermal references learnt at the start

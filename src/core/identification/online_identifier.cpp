@@ -59,6 +59,7 @@ void OnlineIdentifier::reset() {
   noise_std_ = 0.0;
   fit_blocks_ = ~0ull;
   learned_R_reference_ = learned_psi_reference_ = 0.0;
+  pending_R_reference_ = pending_psi_reference_ = PendingReference{};
   operating_point_ = OperatingPoint{};
   first_sample_t_ = std::numeric_limits<double>::quiet_NaN();
   operating_alpha_tau_ = -1.0;
@@ -157,7 +158,7 @@ SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status
     samples_since_refresh_ = 0;
     refreshSearchBox();
   }
-  // A declared cold start: the thermal references are the first identified values, whether or not
+  // A declared cold start: the thermal references are learnt from the data (see estimate()), whether or not
   // anybody asks for an estimate then (checked once per block length until both are learnt).
   const ThermalSettings& th = config_.thermal;
   const bool learning = th.enabled && s.t - first_sample_t_ <= th.learning_time &&
@@ -332,10 +333,21 @@ Estimate OnlineIdentifier::estimate() const {
              config_.assessment.confidence_sigmas * e.fit.relative_std[p] <= config_.assessment.max_relative_uncertainty &&
              plausible(p, e.fit.optimum[p]);
     };
-    if (th.R_s_at_reference == 0.0 && learned_R_reference_ == 0.0 && learnable(kRs))
-      learned_R_reference_ = e.fit.optimum[kRs];
-    if (th.psi_f_at_reference == 0.0 && learned_psi_reference_ == 0.0 && learnable(kPsiF))
-      learned_psi_reference_ = e.fit.optimum[kPsiF];
+    // A value is taken once a second one, at least confirm_time later, agrees with it within the
+    // identification threshold (a start-up transient can make a short window's optimum look
+    // determined and yet be off: measured 15 % on R_s in a live run).
+    const double confirm_time = 0.1;  // [s]
+    const auto learn = [&](int p, double configured, double& learned, PendingReference& pending) {
+      if (configured != 0.0 || learned != 0.0 || !learnable(p)) return;
+      const double value = e.fit.optimum[p];
+      if (pending.t < 0 || std::abs(value / pending.value - 1.0) > config_.assessment.max_relative_uncertainty) {
+        pending = {e.t, value};  // (re)start: the first candidate, or one that moved
+      } else if (e.t - pending.t >= confirm_time) {
+        learned = value;
+      }
+    };
+    learn(kRs, th.R_s_at_reference, learned_R_reference_, pending_R_reference_);
+    learn(kPsiF, th.psi_f_at_reference, learned_psi_reference_, pending_psi_reference_);
     const double R_ref = th.R_s_at_reference > 0 ? th.R_s_at_reference : learned_R_reference_;
     const double psi_ref = th.psi_f_at_reference > 0 ? th.psi_f_at_reference : learned_psi_reference_;
     if (e.identifiable[kRs])
