@@ -23,9 +23,13 @@ class YamlReader {
   double number(const std::string& key, double fallback) const;
   double positive(const std::string& key) const;
   double positive(const std::string& key, double fallback) const;
+  /// Optional number >= 0; ConfigError "must be >= 0" + hint (e.g. " [V]", " (0 = automatic)").
+  double nonNegative(const std::string& key, double fallback, const std::string& hint = "") const;
   /// Integer in [min, max]; ConfigError naming the range otherwise.
   long integer(const std::string& key, long fallback, long min, long max) const;
   std::string text(const std::string& key, const std::string& fallback) const;
+  /// Optional text that must be one of options; ConfigError "expected a, b or c, got 'x'".
+  std::string oneOf(const std::string& key, const std::string& fallback, const std::vector<std::string>& options) const;
   bool flag(const std::string& key, bool fallback) const;
   std::vector<double> numbers(const std::string& key) const;
   /// A profile mapping {type: constant|step|ramp|sine|square|piecewise, ...}.

@@ -99,8 +99,7 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   c.iterations_per_sample =
       static_cast<int>(y.integer("swarm.iterations_per_sample", c.iterations_per_sample, 1, 10000));
   c.magnetics.cross_saturation = y.flag("magnetics.cross_saturation", c.magnetics.cross_saturation);
-  const std::string fitness = y.text("fitness", toString(c.fitness));
-  if (!fitnessKindFrom(fitness, c.fitness)) y.fail("fitness", "expected block, paper or paper_one_step, got '" + fitness + "'");
+  fitnessKindFrom(y.oneOf("fitness", toString(c.fitness), {"block", "paper", "paper_one_step"}), c.fitness);
   c.fitness_window_samples =
       static_cast<int>(y.integer("fitness_window_samples", c.fitness_window_samples, 2, 1000000));
   c.sapso_T1 = y.number("sapso.T1", c.sapso_T1);
@@ -110,14 +109,11 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   c.fbdapso_C1 = y.number("fbdapso.C1", c.fbdapso_C1);
   c.fbdapso_C2 = y.number("fbdapso.C2", c.fbdapso_C2);
   c.fbdapso_zero_delta = y.positive("fbdapso.zero_delta", c.fbdapso_zero_delta);
-  c.ekf.measurement_sigma = y.number("ekf.measurement_sigma", c.ekf.measurement_sigma);
-  if (c.ekf.measurement_sigma < 0) y.fail("ekf.measurement_sigma", "must be >= 0 (0 = from the data)");
-  c.ekf.process_current_sigma = y.number("ekf.process_current_sigma", c.ekf.process_current_sigma);
-  if (c.ekf.process_current_sigma < 0) y.fail("ekf.process_current_sigma", "must be >= 0 (0 = automatic)");
+  c.ekf.measurement_sigma = y.nonNegative("ekf.measurement_sigma", c.ekf.measurement_sigma, " (0 = from the data)");
+  c.ekf.process_current_sigma = y.nonNegative("ekf.process_current_sigma", c.ekf.process_current_sigma, " (0 = automatic)");
   c.ekf.parameter_drift = y.positive("ekf.parameter_drift", c.ekf.parameter_drift);
   c.ekf.initial_relative_std = y.positive("ekf.initial_relative_std", c.ekf.initial_relative_std);
-  c.rls.time_constant = y.number("rls.time_constant", c.rls.time_constant);
-  if (c.rls.time_constant < 0) y.fail("rls.time_constant", "must be >= 0 (0 = the fitness window's)");
+  c.rls.time_constant = y.nonNegative("rls.time_constant", c.rls.time_constant, " (0 = the fitness window's)");
   c.rls.initial_covariance = y.positive("rls.initial_covariance", c.rls.initial_covariance);
   c.assessment.max_relative_uncertainty =
       y.positive("assessment.max_relative_uncertainty", c.assessment.max_relative_uncertainty);
@@ -130,14 +126,11 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   c.time.sample_period = y.number("time.sample_period", c.time.sample_period);
   c.time.max_gap_periods = y.number("time.max_gap_periods", c.time.max_gap_periods);
   c.window.voltage_delay_samples = static_cast<int>(y.integer("time.voltage_delay_samples", 0, 0, 1));
-  const std::string hold = y.text("time.voltage_hold", "dq");
-  if (hold != "dq" && hold != "stationary") y.fail("time.voltage_hold", "expected dq or stationary, got '" + hold + "'");
+  const std::string hold = y.oneOf("time.voltage_hold", "dq", {"dq", "stationary"});
   c.window.stationary_hold = hold == "stationary";
-  const std::string model = y.text("inverter.model", "none");
-  if (model != "none" && model != "estimate") y.fail("inverter.model", "expected none or estimate, got '" + model + "'");
+  const std::string model = y.oneOf("inverter.model", "none", {"none", "estimate"});
   c.inverter.estimate_voltage = model == "estimate";
-  c.window.inverter_zero_crossing_current = y.number("inverter.zero_crossing_current", 0.0);
-  if (c.window.inverter_zero_crossing_current < 0) y.fail("inverter.zero_crossing_current", "must be >= 0 [A] (0 = sign)");
+  c.window.inverter_zero_crossing_current = y.nonNegative("inverter.zero_crossing_current", 0.0, " [A] (0 = sign)");
   c.inverter.max_relative_uncertainty =
       y.positive("inverter.max_relative_uncertainty", c.inverter.max_relative_uncertainty);
   bool thermal_reference_missing = false;

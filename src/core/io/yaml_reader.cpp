@@ -70,6 +70,21 @@ double YamlReader::positive(const std::string& key) const {
 double YamlReader::positive(const std::string& key, double fallback) const {
   return has(key) ? positive(key) : fallback;
 }
+double YamlReader::nonNegative(const std::string& key, double fallback, const std::string& hint) const {
+  const double v = number(key, fallback);
+  if (v < 0) fail(key, "must be >= 0" + hint);
+  return v;
+}
+std::string YamlReader::oneOf(const std::string& key, const std::string& fallback,
+                              const std::vector<std::string>& options) const {
+  const std::string v = text(key, fallback);
+  for (const std::string& o : options)
+    if (v == o) return v;
+  std::string expected;
+  for (std::size_t k = 0; k < options.size(); ++k)
+    expected += (k == 0 ? "" : k + 1 == options.size() ? " or " : ", ") + options[k];
+  fail(key, "expected " + expected + ", got '" + v + "'");
+}
 long YamlReader::integer(const std::string& key, long fallback, long min, long max) const {
   if (!has(key)) return fallback;
   const double v = number(key);

@@ -33,8 +33,7 @@ Scenario loadScenario(const std::string& path) {
   if (s.drive.current_loop_bandwidth_hz * s.drive.sample_period > 0.25)
     y.fail("drive.current_loop_bandwidth_hz", "too high for the sampling period (keep bandwidth * T_s <= 0.25)");
 
-  s.sensors.current_noise_sigma = y.number("sensors.current_noise_sigma", 0.0);
-  if (s.sensors.current_noise_sigma < 0) y.fail("sensors.current_noise_sigma", "must be >= 0");
+  s.sensors.current_noise_sigma = y.nonNegative("sensors.current_noise_sigma", 0.0);
   const long bits = y.integer("sensors.adc_bits", 0, 0, 32);
   s.sensors.adc_bits = static_cast<int>(bits);
   s.sensors.adc_range = y.positive("sensors.adc_range", 50.0);
@@ -43,20 +42,16 @@ Scenario loadScenario(const std::string& path) {
   inv.dead_time = y.number("inverter.dead_time", 0.0);
   if (inv.dead_time < 0 || inv.dead_time > 0.2 * s.drive.sample_period)
     y.fail("inverter.dead_time", "must be in [0, 0.2 x drive.sample_period] [s]");
-  inv.switching_frequency = y.number("inverter.switching_frequency", 0.0);
-  if (inv.switching_frequency < 0) y.fail("inverter.switching_frequency", "must be >= 0 (0 = 1 / sample_period)");
-  inv.device_drop = y.number("inverter.device_drop", 0.0);
-  if (inv.device_drop < 0) y.fail("inverter.device_drop", "must be >= 0 [V]");
+  inv.switching_frequency = y.nonNegative("inverter.switching_frequency", 0.0, " (0 = 1 / sample_period)");
+  inv.device_drop = y.nonNegative("inverter.device_drop", 0.0, " [V]");
   inv.zero_crossing_current = y.positive("inverter.zero_crossing_current", inv.zero_crossing_current);
-  const std::string hold = y.text("inverter.voltage_hold", "dq");
-  if (hold != "dq" && hold != "stationary") y.fail("inverter.voltage_hold", "expected dq or stationary, got '" + hold + "'");
+  const std::string hold = y.oneOf("inverter.voltage_hold", "dq", {"dq", "stationary"});
   inv.stationary_hold = hold == "stationary";
   inv.computation_delay = static_cast<int>(y.integer("inverter.computation_delay", 0, 0, 1));
   inv.dc_ripple = y.number("inverter.dc_ripple", 0.0);
   if (inv.dc_ripple < 0 || inv.dc_ripple >= 0.5) y.fail("inverter.dc_ripple", "must be in [0, 0.5)");
   inv.dc_ripple_frequency = y.positive("inverter.dc_ripple_frequency", inv.dc_ripple_frequency);
-  const std::string frame = y.text("sensors.frame", "dq");
-  if (frame != "dq" && frame != "phase") y.fail("sensors.frame", "expected dq or phase, got '" + frame + "'");
+  const std::string frame = y.oneOf("sensors.frame", "dq", {"dq", "phase"});
   s.sensors.phase_currents = frame == "phase";
   for (const char* key : {"sensors.phase_offset", "sensors.phase_gain"}) {
     if (!y.has(key)) continue;
@@ -77,8 +72,7 @@ Scenario loadScenario(const std::string& path) {
     th.winding_to_magnet = y.positive("thermal.winding_to_magnet", th.winding_to_magnet);
     th.magnet_capacity = y.positive("thermal.magnet_capacity", th.magnet_capacity);
     th.magnet_to_ambient = y.positive("thermal.magnet_to_ambient", th.magnet_to_ambient);
-    th.magnet_loss_coefficient = y.number("thermal.magnet_loss_coefficient", th.magnet_loss_coefficient);
-    if (th.magnet_loss_coefficient < 0) y.fail("thermal.magnet_loss_coefficient", "must be >= 0");
+    th.magnet_loss_coefficient = y.nonNegative("thermal.magnet_loss_coefficient", th.magnet_loss_coefficient);
     th.copper_coefficient = y.positive("thermal.copper_coefficient", th.copper_coefficient);
     th.magnet_coefficient = y.number("thermal.magnet_coefficient", th.magnet_coefficient);
     if (!(th.magnet_coefficient < 0)) y.fail("thermal.magnet_coefficient", "must be < 0 [1/K]");
@@ -86,13 +80,10 @@ Scenario loadScenario(const std::string& path) {
   if (y.has("saturation")) {
     SaturationSettings& sat = s.saturation;
     sat.enabled = true;
-    sat.q_saturation_current = y.number("saturation.q_saturation_current", 0.0);
-    if (sat.q_saturation_current < 0) y.fail("saturation.q_saturation_current", "must be >= 0 [A] (0 = linear q axis)");
-    sat.cross_saturation = y.number("saturation.cross_saturation", 0.0);
-    if (sat.cross_saturation < 0) y.fail("saturation.cross_saturation", "must be >= 0 [H/A]");
+    sat.q_saturation_current = y.nonNegative("saturation.q_saturation_current", 0.0, " [A] (0 = linear q axis)");
+    sat.cross_saturation = y.nonNegative("saturation.cross_saturation", 0.0, " [H/A]");
   }
-  const std::string mode = y.text("drive.mode", "speed");
-  if (mode != "speed" && mode != "torque") y.fail("drive.mode", "expected speed or torque, got '" + mode + "'");
+  const std::string mode = y.oneOf("drive.mode", "speed", {"speed", "torque"});
   s.drive.torque_control = mode == "torque";
   s.duration = y.positive("run.duration");
   if (s.duration / s.drive.sample_period > 1e9) y.fail("run.duration", "more than 1e9 samples");
