@@ -29,6 +29,17 @@ LinearBlockModel base(int extra) {
   return m;
 }
 
+// Appends a parameter with empty columns to m; returns its index in beta.
+int addParameter(LinearBlockModel& m, const std::string& name) {
+  const int j = m.size();
+  m.parameter_names.push_back(name);
+  m.G_d.conservativeResize(Eigen::NoChange, j + 1);
+  m.G_q.conservativeResize(Eigen::NoChange, j + 1);
+  m.G_d.col(j).setZero();
+  m.G_q.col(j).setZero();
+  return j;
+}
+
 // Residual weight vectors v = (G beta - e_U) / L per axis (r = v . z) and their Jacobians.
 template <int N>
 void weights(const Eigen::MatrixXd& G, int voltage_row, const VecN& beta, int inductance,
@@ -96,14 +107,8 @@ LinearBlockModel LinearBlockModel::withCrossSaturation(const LinearBlockModel& b
   //   d: int u_d = R int i_d + L_dd Di_d - L_q int omega i_q + L_dq (Di_q - int omega i_d) + ...
   //   q: int u_q = R int i_q + L_qq Di_q + L_dd int omega i_d + psi int omega + L_dq Di_d + ...
   LinearBlockModel m = base_model;
-  const int n = m.size(), L_qq = n, L_dq = n + 1;
   m.name = base_model.name + "+cross_saturation";
-  m.parameter_names.push_back("L_qq");
-  m.parameter_names.push_back("L_dq");
-  m.G_d.conservativeResize(Eigen::NoChange, n + 2);
-  m.G_q.conservativeResize(Eigen::NoChange, n + 2);
-  m.G_d.rightCols(2).setZero();
-  m.G_q.rightCols(2).setZero();
+  const int L_qq = addParameter(m, "L_qq"), L_dq = addParameter(m, "L_dq");
   m.G_q(kDeltaIq, kLq) = 0.0;
   m.G_q(kDeltaIq, L_qq) = 1.0;
   m.G_d(kDeltaIqInD, L_dq) = 1.0;
@@ -124,13 +129,9 @@ const LinearBlockModel& LinearBlockModel::crossSaturationSpeedScale() {
     // legitimately apart on a saturating machine, the unit is tested on the linear d axis.
     LinearBlockModel m = withCrossSaturation(paper());
     m.name = "cross_saturation_speed_scale";
-    m.parameter_names.push_back("L_d_speed_term");
-    m.G_d.conservativeResize(Eigen::NoChange, 7);
-    m.G_q.conservativeResize(Eigen::NoChange, 7);
-    m.G_d.col(6).setZero();
-    m.G_q.col(6).setZero();
+    const int L_d_speed = addParameter(m, "L_d_speed_term");  // 6: measureSpeedScale reads beta(6)
     m.G_q(kIntegralOmegaId, kLd) = 0.0;
-    m.G_q(kIntegralOmegaId, 6) = 1.0;
+    m.G_q(kIntegralOmegaId, L_d_speed) = 1.0;
     return m;
   }();
   return model;
