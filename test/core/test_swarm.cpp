@@ -14,6 +14,29 @@ TEST(Acceptance, PsoTakesEveryMove) {
   EXPECT_FALSE(p.hasTemperature());
 }
 
+// The bounds that spare exp() must never change a decision: the test against exp() itself over x
+// from 0 to beyond 40 and r on a fine grid, with r placed right at exp(-x) and one ulp either side.
+TEST(Acceptance, MetropolisBoundsDecideAsExpDoes) {
+  int band = 0, total = 0;
+  for (double x = 0.0; x < 45.0; x = x < 1e-3 ? x + 1e-5 : x * 1.01) {
+    const double e = std::exp(-x);
+    for (double r : {0.0, e, std::nextafter(e, 0.0), std::nextafter(e, 1.0), 0.5 * e, 2.0 * e}) {
+      if (r >= 1.0) continue;
+      EXPECT_EQ(metropolisAccepts(x, r), e > r) << "x = " << x << ", r = " << r;
+    }
+    for (int k = 0; k < 200; ++k) {
+      const double r = (k + 0.5) / 200.0;
+      ++total;
+      const double x2 = x * x;
+      band += !(r < 1.0 - x + 0.5 * x2 - x2 * x / 6.0) && !(r * (1.0 + x + 0.5 * x2 + x2 * x / 6.0 + x2 * x2 / 24.0) > 1.0);
+      ASSERT_EQ(metropolisAccepts(x, r), e > r) << "x = " << x << ", r = " << r;
+    }
+  }
+  EXPECT_LT(band, total / 20);  // exp() is rarely needed
+  EXPECT_FALSE(metropolisAccepts(std::nan(""), 0.0));
+  EXPECT_FALSE(metropolisAccepts(INFINITY, 0.0));
+}
+
 TEST(Acceptance, MetropolisFollowsEq16) {
   MetropolisAcceptance p(1000.0, 0.8);
   ParticleTemperature th;

@@ -5,31 +5,14 @@
 
 namespace pmsm_param_id {
 
-bool MetropolisAcceptance::accept(double delta, double r, ParticleTemperature& th) const {
-  if (delta <= 0.0) return true;  // Eq. (16)
-  return metropolisAccepts(delta / th.T, r);
-}
-
-bool BackfireDoubleAnnealing::accept(double delta, double r, ParticleTemperature& th) const {
-  if (delta < 0.0) {  // better: accepted, general annealing (Eq. 7)
-    th.T *= C1_;
-    return true;
-  }
-  const double d = delta == 0.0 ? zero_delta_ : delta;  // Eq. (17)
-  if (metropolisAccepts(d / th.T, r)) {
-    ++th.accepted_worse;  // tempering (Eq. 8), then general annealing (step 9)
-    th.c2_power *= C2_;   // = C2^d
-    th.T = C1_ * (th.T + th.c2_power * T2_);
-    return true;
-  }
-  return false;
-}
-
 ParticleSwarm::ParticleSwarm(const SwarmSettings& settings, std::shared_ptr<const AcceptancePolicy> policy,
                              const ParameterVector& lower, const ParameterVector& upper, std::uint64_t seed,
                              const ParameterVector* initial_guess)
     : s_(settings), policy_(std::move(policy)), lower_(lower), rng_(seed) {
   if (s_.particles < 2) throw std::invalid_argument("swarm needs at least 2 particles");
+  if (dynamic_cast<const AlwaysAccept*>(policy_.get())) policy_kind_ = PolicyKind::Pso;
+  else if (dynamic_cast<const MetropolisAcceptance*>(policy_.get())) policy_kind_ = PolicyKind::Sapso;
+  else if (dynamic_cast<const BackfireDoubleAnnealing*>(policy_.get())) policy_kind_ = PolicyKind::Fbdapso;
   for (int d = 0; d < kParameterCount; ++d) {
     if (!(upper[d] > lower[d])) throw std::invalid_argument("swarm bounds: lower must be < upper");
     span_[d] = upper[d] - lower[d];
