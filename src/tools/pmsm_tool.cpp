@@ -54,7 +54,9 @@ json estimateJson(const Estimate& e) {
     j["cross_saturation"] = {{"L_qq", numberOrNull(e.fit.L_qq)}, {"L_qq_std", numberOrNull(e.fit.L_qq_std)},
                              {"L_dq", numberOrNull(e.fit.L_dq)}, {"L_dq_std", numberOrNull(e.fit.L_dq_std)}};
   j["operating_point"] = {{"i_d", numberOrNull(e.operating_point.i_d)}, {"i_q", numberOrNull(e.operating_point.i_q)},
-                          {"omega_e", numberOrNull(e.operating_point.omega_e)}};
+                          {"omega_e", numberOrNull(e.operating_point.omega_e)},
+                          {"i_d_spread", numberOrNull(e.operating_point.i_d_spread)},
+                          {"i_q_spread", numberOrNull(e.operating_point.i_q_spread)}};
   j["fit"] = {{"consistent", e.fit.consistent},
               {"ratio_d", numberOrNull(e.fit.fit_ratio_d)},
               {"ratio_q", numberOrNull(e.fit.fit_ratio_q)},
@@ -134,8 +136,9 @@ void printEstimate(const Estimate& e, bool thermal_enabled = false) {
   if (e.fit.cross_saturation_modelled)
     std::printf("  saturation (data's fit): incremental L_qq = %.4g H +- %.2g, cross L_dq = %.4g H +- %.2g\n", e.fit.L_qq,
                 e.fit.L_qq_std, e.fit.L_dq, e.fit.L_dq_std);
-  std::printf("  operating point (window means): i_d = %.4g A, i_q = %.4g A, omega_e = %.4g rad/s\n", e.operating_point.i_d,
-              e.operating_point.i_q, e.operating_point.omega_e);
+  std::printf("  operating point (window means): i_d = %.4g A (spread %.2g), i_q = %.4g A (spread %.2g), omega_e = %.4g rad/s\n",
+              e.operating_point.i_d, e.operating_point.i_d_spread, e.operating_point.i_q, e.operating_point.i_q_spread,
+              e.operating_point.omega_e);
   std::printf("  sampling period %.4g s; fitness = %.4g A^2, samples = %llu, skipped = %llu, time resets = %llu, gaps = %llu\n",
               e.sample_period, e.fitness,
               static_cast<unsigned long long>(e.counters.used), static_cast<unsigned long long>(e.counters.skipped()),

@@ -41,6 +41,8 @@ struct OperatingPoint {
   double i_d = std::numeric_limits<double>::quiet_NaN();      ///< window mean of i_d [A]
   double i_q = std::numeric_limits<double>::quiet_NaN();      ///< window mean of i_q [A]
   double omega_e = std::numeric_limits<double>::quiet_NaN();  ///< window mean of omega_e [rad/s]
+  double i_d_spread = std::numeric_limits<double>::quiet_NaN();  ///< window standard deviation of i_d [A]
+  double i_q_spread = std::numeric_limits<double>::quiet_NaN();  ///< window standard deviation of i_q [A]
 };
 
 struct Estimate {
@@ -147,6 +149,7 @@ class OnlineIdentifier {
   };
   mutable PendingReference pending_R_reference_, pending_psi_reference_;
   OperatingPoint operating_point_;         // exponentially forgotten means, as the fitness window
+  double variance_i_d_ = 0.0, variance_i_q_ = 0.0;  // and the currents' variances, the same way
   double first_sample_t_ = std::numeric_limits<double>::quiet_NaN();  // of the run (thermal learning)
   double operating_alpha_ = 0.0, operating_alpha_tau_ = -1.0;  // thermal references learnt at the start
 };

@@ -61,6 +61,7 @@ void OnlineIdentifier::reset() {
   learned_R_reference_ = learned_psi_reference_ = 0.0;
   pending_R_reference_ = pending_psi_reference_ = PendingReference{};
   operating_point_ = OperatingPoint{};
+  variance_i_d_ = variance_i_q_ = 0.0;
   first_sample_t_ = std::numeric_limits<double>::quiet_NaN();
   operating_alpha_tau_ = -1.0;
   samples_since_refresh_ = 0;
@@ -142,11 +143,16 @@ SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status
   }
   OperatingPoint& op = operating_point_;
   if (std::isnan(op.i_d)) {
-    op = {s.i_d, s.i_q, s.omega_e};
-  } else {
-    op.i_d += operating_alpha_ * (s.i_d - op.i_d);
-    op.i_q += operating_alpha_ * (s.i_q - op.i_q);
-    op.omega_e += operating_alpha_ * (s.omega_e - op.omega_e);
+    op = {s.i_d, s.i_q, s.omega_e, 0.0, 0.0};
+  } else {  // exponentially weighted mean and variance (West's update)
+    const double a = operating_alpha_, dd = s.i_d - op.i_d, dq = s.i_q - op.i_q;
+    op.i_d += a * dd;
+    op.i_q += a * dq;
+    op.omega_e += a * (s.omega_e - op.omega_e);
+    variance_i_d_ = (1.0 - a) * (variance_i_d_ + a * dd * dd);
+    variance_i_q_ = (1.0 - a) * (variance_i_q_ + a * dq * dq);
+    op.i_d_spread = std::sqrt(variance_i_d_);
+    op.i_q_spread = std::sqrt(variance_i_q_);
   }
   if (!box_.valid && new_block) tryStart();
   if (box_.valid) update(s, new_block, broken_);

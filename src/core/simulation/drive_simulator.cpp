@@ -183,29 +183,67 @@ SimulatedSample DriveSimulator::step() {
   // Plant over [t, t + Ts]: classical RK4 with the applied voltage evaluated at every stage.
   const int n = s.drive.integration_substeps;
   const double h = Ts / n;
-  const auto derivative = [&](const PlantState& x) {
-    const Vec2 u = applied(x);
-    PlantDerivative d = s.saturation.enabled ? saturatedPlantDerivative(plant, s.saturation, x, u.x, u.y, out.load_torque)
-                                             : plantDerivative(plant, x, u.x, u.y, out.load_torque);
-    if (s.drive.torque_control) d.domega_m = 0.0;  // held by the load machine
-    return d;
-  };
-  const auto add = [](const PlantState& a, const PlantDerivative& d, double k) {
-    return PlantState{a.i_d + k * d.di_d, a.i_q + k * d.di_q, a.omega_m + k * d.domega_m, a.theta_e + k * d.dtheta_e};
-  };
   double applied_d = 0.0, applied_q = 0.0;
-  for (int j = 0; j < n; ++j) {
-    const PlantDerivative k1 = derivative(x_);
-    const PlantDerivative k2 = derivative(add(x_, k1, h / 2));
-    const PlantDerivative k3 = derivative(add(x_, k2, h / 2));
-    const PlantDerivative k4 = derivative(add(x_, k3, h));
-    const Vec2 u0 = applied(x_);
-    applied_d += u0.x / n;
-    applied_q += u0.y / n;
-    x_.i_d += h / 6 * (k1.di_d + 2 * k2.di_d + 2 * k3.di_d + k4.di_d);
-    x_.i_q += h / 6 * (k1.di_q + 2 * k2.di_q + 2 * k3.di_q + k4.di_q);
-    x_.omega_m += h / 6 * (k1.domega_m + 2 * k2.domega_m + 2 * k3.domega_m + k4.domega_m);
-    x_.theta_e += h / 6 * (k1.dtheta_e + 2 * k2.dtheta_e + 2 * k3.dtheta_e + k4.dtheta_e);
+  if (s.saturation.enabled) {
+    // Saturating magnetics: the flux linkages are the state (the currents follow from them at each
+    // stage, model/magnetics.hpp). A period starts from the flux of the present currents, so a step
+    // of a parameter profile keeps the currents continuous.
+    struct State {
+      double psi_d, psi_q, omega_m, theta_e;
+    };
+    double i_d_guess = x_.i_d, i_q_guess = x_.i_q;
+    const auto derivative = [&](const State& y) {
+      currentsFromFlux(plant, s.saturation, y.psi_d, y.psi_q, i_d_guess, i_q_guess);
+      const Vec2 u = applied(PlantState{i_d_guess, i_q_guess, y.omega_m, y.theta_e});
+      FluxDerivative d = saturatedPlantDerivative(plant, y.psi_d, y.psi_q, i_d_guess, i_q_guess, y.omega_m, u.x, u.y,
+                                                  out.load_torque);
+      if (s.drive.torque_control) d.domega_m = 0.0;  // held by the load machine
+      return d;
+    };
+    const auto add = [](const State& a, const FluxDerivative& d, double k) {
+      return State{a.psi_d + k * d.dpsi_d, a.psi_q + k * d.dpsi_q, a.omega_m + k * d.domega_m, a.theta_e + k * d.dtheta_e};
+    };
+    const MagneticState start = magneticState(plant, s.saturation, x_.i_d, x_.i_q);
+    State y{start.psi_d, start.psi_q, x_.omega_m, x_.theta_e};
+    for (int j = 0; j < n; ++j) {
+      const Vec2 u0 = applied(x_);
+      applied_d += u0.x / n;
+      applied_q += u0.y / n;
+      const FluxDerivative k1 = derivative(y);
+      const FluxDerivative k2 = derivative(add(y, k1, h / 2));
+      const FluxDerivative k3 = derivative(add(y, k2, h / 2));
+      const FluxDerivative k4 = derivative(add(y, k3, h));
+      y.psi_d += h / 6 * (k1.dpsi_d + 2 * k2.dpsi_d + 2 * k3.dpsi_d + k4.dpsi_d);
+      y.psi_q += h / 6 * (k1.dpsi_q + 2 * k2.dpsi_q + 2 * k3.dpsi_q + k4.dpsi_q);
+      y.omega_m += h / 6 * (k1.domega_m + 2 * k2.domega_m + 2 * k3.domega_m + k4.domega_m);
+      y.theta_e += h / 6 * (k1.dtheta_e + 2 * k2.dtheta_e + 2 * k3.dtheta_e + k4.dtheta_e);
+      currentsFromFlux(plant, s.saturation, y.psi_d, y.psi_q, x_.i_d, x_.i_q);
+      x_.omega_m = y.omega_m;
+      x_.theta_e = y.theta_e;
+    }
+  } else {
+    const auto derivative = [&](const PlantState& x) {
+      const Vec2 u = applied(x);
+      PlantDerivative d = plantDerivative(plant, x, u.x, u.y, out.load_torque);
+      if (s.drive.torque_control) d.domega_m = 0.0;  // held by the load machine
+      return d;
+    };
+    const auto add = [](const PlantState& a, const PlantDerivative& d, double k) {
+      return PlantState{a.i_d + k * d.di_d, a.i_q + k * d.di_q, a.omega_m + k * d.domega_m, a.theta_e + k * d.dtheta_e};
+    };
+    for (int j = 0; j < n; ++j) {
+      const PlantDerivative k1 = derivative(x_);
+      const PlantDerivative k2 = derivative(add(x_, k1, h / 2));
+      const PlantDerivative k3 = derivative(add(x_, k2, h / 2));
+      const PlantDerivative k4 = derivative(add(x_, k3, h));
+      const Vec2 u0 = applied(x_);
+      applied_d += u0.x / n;
+      applied_q += u0.y / n;
+      x_.i_d += h / 6 * (k1.di_d + 2 * k2.di_d + 2 * k3.di_d + k4.di_d);
+      x_.i_q += h / 6 * (k1.di_q + 2 * k2.di_q + 2 * k3.di_q + k4.di_q);
+      x_.omega_m += h / 6 * (k1.domega_m + 2 * k2.domega_m + 2 * k3.domega_m + k4.domega_m);
+      x_.theta_e += h / 6 * (k1.dtheta_e + 2 * k2.dtheta_e + 2 * k3.dtheta_e + k4.dtheta_e);
+    }
   }
   out.u_d_applied = applied_d;
   out.u_q_applied = applied_q;

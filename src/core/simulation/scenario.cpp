@@ -1,7 +1,9 @@
 #include "pmsm_param_id/simulation/scenario.hpp"
 
 #include <cmath>
+#include <memory>
 
+#include "pmsm_param_id/io/config_error.hpp"
 #include "pmsm_param_id/io/yaml_reader.hpp"
 
 namespace pmsm_param_id {
@@ -82,6 +84,18 @@ Scenario loadScenario(const std::string& path) {
     sat.enabled = true;
     sat.q_saturation_current = y.nonNegative("saturation.q_saturation_current", 0.0, " [A] (0 = linear q axis)");
     sat.cross_saturation = y.nonNegative("saturation.cross_saturation", 0.0, " [H/A]");
+    const std::string map = y.text("saturation.flux_map_csv", "");
+    if (!map.empty()) {
+      if (y.has("saturation.q_saturation_current") || y.has("saturation.cross_saturation"))
+        y.fail("saturation.flux_map_csv", "give either a flux map or the analytic model's constants, not both");
+      // Relative to the scenario file, as users keep a map beside the scenario that uses it.
+      const std::string resolved = map.front() == '/' ? map : path.substr(0, path.find_last_of('/') + 1) + map;
+      try {
+        sat.flux_map = std::make_shared<const FluxTable>(loadFluxTable(resolved));
+      } catch (const UserError& e) {
+        y.fail("saturation.flux_map_csv", e.what());
+      }
+    }
   }
   const std::string mode = y.oneOf("drive.mode", "speed", {"speed", "torque"});
   s.drive.torque_control = mode == "torque";
@@ -100,6 +114,10 @@ Scenario loadScenario(const std::string& path) {
   s.psi_f_scale = y.profile("profiles.psi_f_scale", Profile::constant(1.0));
   s.L_d_scale = y.profile("profiles.L_d_scale", Profile::constant(1.0));
   s.L_q_scale = y.profile("profiles.L_q_scale", Profile::constant(1.0));
+  if (s.saturation.flux_map)  // the map is the machine's flux as measured: nothing scales it
+    for (const char* key : {"profiles.psi_f_scale", "profiles.L_d_scale", "profiles.L_q_scale", "thermal"})
+      if (y.has(key))
+        y.fail(key, "not with saturation.flux_map_csv (the map's fluxes are used as they are, at one temperature)");
   y.rejectUnknownKeys();
   return s;
 }
