@@ -4,12 +4,14 @@
     report.py BAG [--out DIR] [--reference CSV] [--condition wc1|wc2|auto|none]
 
 Reads the estimates (*/estimate, pmsm_param_id/ParameterEstimate), the condition monitor's
-events (*/events, pmsm_param_id/ConditionEvent) and, when present, the true parameters
+events (*/events, pmsm_param_id/ConditionEvent), the maps of the motor (*/map,
+pmsm_param_id/ParameterMap) and, when present, the true parameters
 (/drive/true_parameters) and samples (/drive/samples_batch). Writes DIR/R_s.png, L_d.png, L_q.png,
 psi_f.png (every method against truth, as the paper's Figs. 5-6, 8-9), DIR/fitness.png (Figs. 7
 and 10), DIR/alarms.png (alarm timeline), DIR/temperatures.png (winding and magnet temperatures
-against truth, when any estimate carries one) and DIR/report.md (Table 2/3 layout with the
-paper's numbers beside ours, temperatures, every alarm). Works on bags from demo.launch, replay.launch and csv2bag + replay.
+against truth, when any estimate carries one), DIR/map.png (each map's identified L_d, L_q, psi_f
+against i_q and the truth) and DIR/report.md (Table 2/3 layout with the paper's numbers beside
+ours, temperatures, every alarm, every map cell). Works on bags from demo.launch, replay.launch and csv2bag + replay.
 """
 import argparse
 import bisect
@@ -32,6 +34,7 @@ class BagData:
         self.truth_times = [] # the t of each truth entry, for bisect
         self.truth_temperatures = []  # list of (t, winding, magnet) [degC], NaN when unknown
         self.events = []      # list of (t, method, kind, raised, text) from the condition monitors
+        self.maps = {}        # method -> the latest pmsm_param_id/ParameterMap message (section 12)
         self.speeds = []      # electrical speed samples [rad/s]
         self.origin = None    # first stamp [ns]
         self.missing = []     # what the bag lacks, in words
@@ -48,6 +51,9 @@ def read_bag(path):
         topics = bag.get_type_and_topic_info().topics
         est_topics = [t for t, info in topics.items() if info.msg_type == "pmsm_param_id/ParameterEstimate"]
         event_topics = set(t for t, info in topics.items() if info.msg_type == "pmsm_param_id/ConditionEvent")
+        map_topics = [t for t, info in topics.items() if info.msg_type == "pmsm_param_id/ParameterMap"]
+        for _, msg, _ in bag.read_messages(topics=map_topics):  # latched, growing: keep the latest
+            data.maps[msg.method] = msg
         raw = []
         wanted = est_topics + sorted(event_topics) + ["/drive/true_parameters", "/drive/samples_batch"]
         for topic, msg, _ in bag.read_messages(topics=wanted):
@@ -208,6 +214,46 @@ def alarm_lines(data):
     return lines + [""]
 
 
+def map_points(data, method):
+    """Per identified (cell, parameter) of a method's map: (i_q, parameter index, value, truth or None)."""
+    msg = data.maps.get(method)
+    points = []
+    for cell in (msg.cells if msg else []):
+        for i in range(len(PARAMS)):
+            if not finite(cell.identified[i]):
+                continue
+            t = (cell.identified_stamp[i].to_nsec() - data.origin) * 1e-9
+            true = truth_at(data, t)
+            points.append((cell.identified_i_q[i], i, cell.identified[i], true[i] if true else None))
+    return points
+
+
+def map_lines(data, methods):
+    """The online map of the motor: every cell's identified values against the truth at their time."""
+    if not data.maps:
+        return []
+    lines = ["Map of the motor (doc/algorithm.md section 12): per cell of operating points, the latest value "
+             "reported identified there and its error against the truth of that moment; - never identified. "
+             "L_d incremental, L_q = psi_q / i_q, psi_f = psi_d at i_d = 0.", "",
+             "| method | i_d [A] | i_q [A] | estimates | " + " | ".join("%s [%s] (err %%)" % (p, UNITS[p]) for p in PARAMS) + " |",
+             "|" + "---|" * (4 + len(PARAMS))]
+    for m in [m for m in methods if m in data.maps] + sorted(m for m in data.maps if m not in methods):
+        msg = data.maps[m]
+        for cell in msg.cells:
+            cells = [m, "%.2f" % cell.i_d, "%.2f" % cell.i_q, "%d" % cell.estimates]
+            for i in range(len(PARAMS)):
+                if not finite(cell.identified[i]):
+                    cells.append("-")
+                    continue
+                true = truth_at(data, (cell.identified_stamp[i].to_nsec() - data.origin) * 1e-9)
+                err = 100.0 * (cell.identified[i] / true[i] - 1.0) if true and true[i] else None
+                cells.append("%s (%s)" % (fmt(cell.identified[i], ".5g"), fmt(err, "+.2f")))
+            lines.append("| " + " | ".join(cells) + " |")
+        lines.append("| %s | %d estimates not filed (their window spanned a load change) | | | | | | |"
+                     % (m, msg.transient_estimates))
+    return lines + [""]
+
+
 def write_markdown(path, bag_path, data, summary, paper, condition):
     methods = [m for m in ORDER if m in summary] + sorted(m for m in summary if m not in ORDER)
     lines = ["# Identification report", "", "Bag: `%s`" % os.path.basename(bag_path), ""]
@@ -247,10 +293,12 @@ def write_markdown(path, bag_path, data, summary, paper, condition):
         causes = ["- %s: %s" % (m, summary[m]["likely_cause"]) for m in methods if summary[m]["likely_cause"]]
         if causes:
             lines += ["The model does not fit the data; likely cause:"] + causes + [""]
-    lines += temperature_lines(data, summary, methods) + alarm_lines(data)
+    lines += temperature_lines(data, summary, methods) + alarm_lines(data) + map_lines(data, methods)
     figures = ["[%s](%s.png)" % (p, p) for p in PARAMS] + ["[fitness](fitness.png)", "[alarms](alarms.png)"]
     if has_temperatures(data):
         figures.append("[temperatures](temperatures.png)")
+    if data.maps:
+        figures.append("[map](map.png)")
     lines += ["Figures: " + ", ".join(figures), ""]
     with open(path, "w") as f:
         f.write("\n".join(lines))
@@ -309,6 +357,8 @@ def draw(out_dir, data):
     written.append(draw_alarms(plt, out_dir, data))
     if has_temperatures(data):
         written.append(draw_temperatures(plt, out_dir, data))
+    if data.maps:
+        written.append(draw_map(plt, out_dir, data))
     return written
 
 
@@ -376,6 +426,33 @@ def draw_temperatures(plt, out_dir, data):
     axes[1].set_xlabel("time [s]")
     fig.tight_layout()
     name = os.path.join(out_dir, "temperatures.png")
+    fig.savefig(name)
+    plt.close(fig)
+    return name
+
+
+def draw_map(plt, out_dir, data):
+    """L_d, L_q and psi_f against i_q from every method's map, with the truth at the same moments."""
+    fig, axes = plt.subplots(3, 1, figsize=(8, 8), dpi=100, sharex=True)
+    methods = [m for m in ORDER if m in data.maps] + sorted(m for m in data.maps if m not in ORDER)
+    for k, i in enumerate((1, 2, 3)):
+        ax = axes[k]
+        truth = sorted((q, true) for m in methods for q, p, _, true in map_points(data, m) if p == i and true)
+        if truth:
+            ax.plot([q for q, _ in truth], [v for _, v in truth], "x", color="black", markersize=9, label="truth")
+        for m in methods:
+            pts = [(q, v) for q, p, v, _ in map_points(data, m) if p == i]
+            if pts:
+                ax.plot([q for q, _ in pts], [v for _, v in pts], "o", color=COLORS.get(m), markersize=4,
+                        fillstyle="none", label=m)
+        ax.set_ylabel("%s [%s]" % (PARAMS[i], UNITS[PARAMS[i]]))
+        ax.grid(True, alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc="best", fontsize=8)
+    axes[0].set_title("Map of the motor: identified values per cell against truth")
+    axes[-1].set_xlabel("operating i_q [A]")
+    fig.tight_layout()
+    name = os.path.join(out_dir, "map.png")
     fig.savefig(name)
     plt.close(fig)
     return name

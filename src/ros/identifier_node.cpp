@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "pmsm_param_id/ConditionEvent.h"
+#include "pmsm_param_id/ParameterMap.h"
 #include "pmsm_param_id/io/config_error.hpp"
 
 namespace pmsm_param_id {
@@ -28,8 +29,14 @@ IdentifierNode::IdentifierNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
   if (input != "batch" && input != "single")
     throw ConfigError("parameter ~input: must be 'batch' or 'single', got '" + input + "'");
 
+  map_publish_period_ = typedParam<double>(pnh_, "map_publish_period", 1.0);
+  if (!(map_publish_period_ > 0)) throw ConfigError("parameter ~map_publish_period: must be > 0 [s]");
+  map_csv_ = typedParam<std::string>(pnh_, "map_csv", "");
+
   identifier_ = makeIdentifier(config);
-  monitor_ = ConditionMonitor(config.alarms);
+  monitor_ = ConditionMonitor::forConfig(config);
+  map_ = MotorMap(config.map);
+  pub_map_ = pnh_.advertise<ParameterMap>("map", 1, true);
   pub_estimate_ = pnh_.advertise<ParameterEstimate>("estimate", 1000);
   pub_events_ = pnh_.advertise<ConditionEvent>("events", 100, true);
   const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
@@ -107,6 +114,11 @@ void IdentifierNode::publish() {
     }
   pub_estimate_.publish(toMessage(e, clock_.stampOf(last_t_), frame_id_));
   ++published_;
+  map_changed_ |= map_.add(e) >= 0;
+  if (last_t_ + 1e-12 >= next_map_publish_) {
+    publishMap();
+    next_map_publish_ = (std::floor(last_t_ / map_publish_period_ + 1e-9) + 1.0) * map_publish_period_;
+  }
   for (const AlarmEvent& ev : monitor_.update(e)) {  // alarms only from identified parameters
     ConditionEvent m;
     m.header.stamp = clock_.stampOf(ev.t);
@@ -121,9 +133,51 @@ void IdentifierNode::publish() {
   }
 }
 
+void IdentifierNode::publishMap() {
+  if (!map_changed_) return;
+  map_changed_ = false;
+  ParameterMap m;
+  m.header.stamp = clock_.stampOf(last_t_);
+  m.header.frame_id = frame_id_;
+  m.method = identifier_->method();
+  m.cell_fraction = map_.settings().cell_fraction;
+  m.transient_estimates = map_.transientEstimates();
+  for (const MotorMapCell& c : map_.cells()) {
+    ParameterMapCell cell;
+    cell.i_d = c.i_d;
+    cell.i_q = c.i_q;
+    cell.operating_omega_e = c.latest_point.omega_e;
+    for (int p = 0; p < kParameterCount; ++p) {
+      const std::size_t k = static_cast<std::size_t>(p);
+      cell.latest[k] = c.latest[p];
+      cell.latest_status[k] = static_cast<std::uint8_t>(c.latest_status[p]);
+      cell.identified[k] = c.identified[p];
+      cell.identified_i_q[k] = c.hasIdentified(p) ? c.identified_point[p].i_q : std::nan("");
+      if (c.hasIdentified(p)) cell.identified_stamp[k] = clock_.stampOf(c.identified_t[p]);
+      cell.identified_relative_uncertainty[k] = c.identified_uncertainty[p];
+    }
+    cell.L_dq = c.identified_L_dq;
+    cell.first_seen = clock_.stampOf(c.first_seen);
+    cell.last_seen = clock_.stampOf(c.last_seen);
+    cell.estimates = c.estimates;
+    m.cells.push_back(cell);
+  }
+  pub_map_.publish(m);
+  if (map_csv_.empty()) return;
+  try {
+    writeFluxTable(map_.fluxTable(), map_csv_,
+                   "flux map learnt by the " + identifier_->method() + " identifier (doc/algorithm.md section 12)");
+  } catch (const UserError& e) {
+    ROS_INFO_THROTTLE(10.0, "map not written to %s yet: %s", map_csv_.c_str(), e.what());
+  }
+}
+
 void IdentifierNode::onTimer(const ros::WallTimerEvent&) {
-  // The stream paused or ended: publish the state after the last sample once.
-  if (unpublished_ && (ros::WallTime::now() - last_receive_).toSec() > 0.2) publish();
+  // The stream paused or ended: publish the state after the last sample once, and the map.
+  if (unpublished_ && (ros::WallTime::now() - last_receive_).toSec() > 0.2) {
+    publish();
+    publishMap();
+  }
   const double window = (ros::WallTime::now() - rate_window_start_).toSec();
   if (window >= 1.0) {
     rate_ = static_cast<double>(rate_window_count_) / window;

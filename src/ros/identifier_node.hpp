@@ -7,6 +7,7 @@
 #include <string>
 
 #include "pmsm_param_id/identification/monitor.hpp"
+#include "pmsm_param_id/identification/motor_map.hpp"
 #include "pmsm_param_id/identification/online_identifier.hpp"
 #include "ros_bridge.hpp"
 
@@ -23,6 +24,7 @@ class IdentifierNode {
   void onSample(const DriveSample::ConstPtr& msg);
   void consume(const Sample& s);
   void publish();
+  void publishMap();
   void onTimer(const ros::WallTimerEvent&);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
 
@@ -32,6 +34,12 @@ class IdentifierNode {
   ros::Subscriber sub_;
   ros::Publisher pub_estimate_;
   ros::Publisher pub_events_;
+  ros::Publisher pub_map_;
+  MotorMap map_;
+  double map_publish_period_ = 1.0;  // [s] of stamp time
+  double next_map_publish_ = 0.0;
+  std::string map_csv_;              // written with every map publication when set
+  bool map_changed_ = false;
   ConditionMonitor monitor_;
   std::vector<AlarmEvent> recent_events_;
   ros::WallTimer timer_;

@@ -249,7 +249,7 @@ RunResult runOne(const std::vector<SimulatedSample>& data, IdentifierConfig conf
   const std::size_t stride = std::max<std::size_t>(1, static_cast<std::size_t>(std::lround(1e-4 / Ts)));
   trace.reserve(data.size() / stride + 1);
   double cpu = 0.0;
-  ConditionMonitor condition(config.alarms);
+  ConditionMonitor condition = ConditionMonitor::forConfig(config);
   const std::size_t monitor_stride = std::max<std::size_t>(1, static_cast<std::size_t>(std::lround(kMonitorPeriod / Ts)));
   for (std::size_t k = 0; k < data.size(); ++k) {
     const auto t0 = std::chrono::steady_clock::now();

@@ -720,6 +720,40 @@ TEST(Monitor, InterTurnFaultStepsRaiseAJumpAndNothingElse) {
   EXPECT_NEAR(e.parameters[kLq] / (0.85 * s.motor.L_q), 1.0, 0.01);
 }
 
+// A saturating machine declared so (magnetics.cross_saturation): L_q falls by tens of per cent
+// from light load to rated by design, and the load steps raise nothing; a real 10 % step of the
+// inductances while the load stays in one cell still raises a jump. Without the cell rule the load
+// steps themselves were reported as jumps (+19 % L_q).
+TEST(Monitor, OnASaturatingMachineLoadStepsAreNotJumpsButAFaultIs) {
+  Scenario s = test_helpers::scenario("saturated_map.yaml");
+  s.duration = 3.0;  // 2, 4, 6 A
+  IdentifierConfig c = loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/saturating_machine.yaml"));
+  c.method = "wls";
+  const auto events = [&](const std::vector<SimulatedSample>& data, ConditionMonitor monitor) {
+    auto id = makeIdentifier(c);
+    std::vector<AlarmEvent> out;
+    for (std::size_t k = 0; k < data.size(); ++k) {
+      id->process(data[k].sample);
+      if (k % 10 == 9)
+        for (const AlarmEvent& ev : monitor.update(id->estimate())) out.push_back(ev);
+    }
+    return out;
+  };
+  const auto healthy = test_helpers::run(s);
+  for (const AlarmEvent& ev : events(healthy, ConditionMonitor::forConfig(c)))
+    ADD_FAILURE() << toString(ev.kind) << (ev.raised ? " raised: " : " cleared: ") << ev.text;
+  bool across = false;  // the same data without the cell rule: the load steps look like jumps
+  for (const AlarmEvent& ev : events(healthy, ConditionMonitor(c.alarms))) across = across || ev.kind == AlarmKind::ParameterJump;
+  EXPECT_TRUE(across);
+  s.L_d_scale = Profile::step(1.0, 0.9, 2.5);  // in the middle of the 6 A level
+  s.L_q_scale = Profile::step(1.0, 0.9, 2.5);
+  double jump_at = -1.0;
+  for (const AlarmEvent& ev : events(test_helpers::run(s), ConditionMonitor::forConfig(c)))
+    if (ev.kind == AlarmKind::ParameterJump && ev.raised && jump_at < 0) jump_at = ev.t;
+  EXPECT_GE(jump_at, 2.5);
+  EXPECT_LE(jump_at, 3.0);
+}
+
 TEST(Monitor, WindingOverTemperatureAndAJumpInResistance) {
   Scenario s = test_helpers::scenario("wc1_drive.yaml");
   s.duration = 1.2;

@@ -59,6 +59,16 @@ struct MagneticsModelSettings {
   bool cross_saturation = false;
 };
 
+/// The online map of the motor (doc/algorithm.md section 12).
+struct MotorMapSettings {
+  /// Two operating points share a cell when i_d and i_q each differ by at most this fraction of
+  /// the larger current magnitude (of the two points, and at least 5 % of the largest current seen).
+  /// An estimate is filed only when its window's data lie in one cell: the window's i_q spread
+  /// (standard deviation) at most half that tolerance; i_d may move more (the injection), L_d is
+  /// the slope across it.
+  double cell_fraction = 0.1;
+};
+
 struct TimeSettings {
   double sample_period = 0.0;   ///< nominal sampling period [s]; 0 = median of the stream's steps
   double max_gap_periods = 3.0; ///< a step longer than this many nominal periods is a gap [-]
@@ -82,6 +92,7 @@ struct IdentifierConfig {
   TimeSettings time;
   InverterModelSettings inverter;
   MagneticsModelSettings magnetics;
+  MotorMapSettings map;
   ThermalSettings thermal;
   AlarmSettings alarms;
 };

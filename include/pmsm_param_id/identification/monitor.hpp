@@ -9,6 +9,10 @@
 // already weak). A psi_f that falls by more than `demagnetisation_drop` within `jump_window` raises
 // it too, with or without temperatures: 2 % in a second is 17 K of NdFeB heating per second, which
 // no machine's magnets do; it stays raised until psi_f comes back to within half the drop.
+//
+// On a machine declared saturating (magnetics.cross_saturation) the estimates stand for the
+// present operating point and change with the load by design: jumps, drift and the psi_f drop are
+// then judged only between estimates whose operating i_q share a cell of the map (map.cell_fraction).
 #pragma once
 #include <deque>
 #include <string>
@@ -32,7 +36,14 @@ struct AlarmEvent {
 
 class ConditionMonitor {
  public:
-  explicit ConditionMonitor(const AlarmSettings& settings = {}) : s_(settings) {}
+  /// operating_cell_fraction > 0: compare estimates only within one cell of operating points (a
+  /// saturating machine, see above); 0: across every operating point.
+  explicit ConditionMonitor(const AlarmSettings& settings = {}, double operating_cell_fraction = 0.0)
+      : s_(settings), cell_fraction_(operating_cell_fraction) {}
+  /// The monitor a config asks for (the cell rule when the machine is declared saturating).
+  static ConditionMonitor forConfig(const IdentifierConfig& c) {
+    return ConditionMonitor(c.alarms, c.magnetics.cross_saturation ? c.map.cell_fraction : 0.0);
+  }
   /// Feeds an estimate (in stamp order); returns the alarms raised or cleared by it.
   std::vector<AlarmEvent> update(const Estimate& e);
   bool active(AlarmKind k) const { return active_[static_cast<int>(k)]; }
@@ -42,9 +53,14 @@ class ConditionMonitor {
     double t;
     ParameterVector p;
     std::array<bool, kParameterCount> ok;
+    double i_q;
   };
+  /// The two operating i_q are comparable (always, without the cell rule).
+  bool sameCell(double i_q_a, double i_q_b) const;
   void set(AlarmKind k, bool on, double t, const std::string& text, std::vector<AlarmEvent>& out);
   AlarmSettings s_;
+  double cell_fraction_ = 0.0;
+  double largest_i_q_ = 0.0;
   std::array<bool, 4> active_{};
   double demag_since_ = -1.0, overtemp_since_ = -1.0;
   bool demag_by_temperature_ = false, demag_by_drop_ = false;
@@ -52,7 +68,7 @@ class ConditionMonitor {
   std::string demag_text_;
   std::deque<Point> history_;
   struct LastValue {
-    double t = -1.0, value = 0.0;
+    double t = -1.0, value = 0.0, i_q = 0.0;
   };
   std::array<LastValue, kParameterCount> last_{};
   double jump_at_ = -1.0;

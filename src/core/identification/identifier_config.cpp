@@ -17,6 +17,7 @@ void validate(const IdentifierConfig& c, const std::string& source) {
     throw ConfigError(source + ": key '" + key + "': " + msg);
   };
   if (!isKnownMethod(c.method)) fail("method", "unknown method '" + c.method + "' (expected " + methodList() + ")");
+  if (!(c.map.cell_fraction > 0.0 && c.map.cell_fraction < 1.0)) fail("map.cell_fraction", "must be in (0, 1) [-]");
   if (c.magnetics.cross_saturation && c.inverter.estimate_voltage)
     fail("magnetics.cross_saturation", "not together with inverter.model: estimate (not supported yet)");
   for (int p = 0; p < kParameterCount; ++p) {
@@ -99,6 +100,7 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   c.iterations_per_sample =
       static_cast<int>(y.integer("swarm.iterations_per_sample", c.iterations_per_sample, 1, 10000));
   c.magnetics.cross_saturation = y.flag("magnetics.cross_saturation", c.magnetics.cross_saturation);
+  c.map.cell_fraction = y.number("map.cell_fraction", c.map.cell_fraction);
   fitnessKindFrom(y.oneOf("fitness", toString(c.fitness), {"block", "paper", "paper_one_step"}), c.fitness);
   c.fitness_window_samples =
       static_cast<int>(y.integer("fitness_window_samples", c.fitness_window_samples, 2, 1000000));

@@ -23,9 +23,17 @@ void ConditionMonitor::set(AlarmKind k, bool on, double t, const std::string& te
   out.push_back({t, k, on, text});
 }
 
+bool ConditionMonitor::sameCell(double i_q_a, double i_q_b) const {
+  if (!(cell_fraction_ > 0)) return true;
+  const double scale = std::max({std::abs(i_q_a), std::abs(i_q_b), 0.05 * largest_i_q_});
+  return std::abs(i_q_a - i_q_b) <= cell_fraction_ * scale;
+}
+
 std::vector<AlarmEvent> ConditionMonitor::update(const Estimate& e) {
   std::vector<AlarmEvent> out;
   const double t = e.t;
+  const double i_q = std::isfinite(e.operating_point.i_q) ? e.operating_point.i_q : 0.0;
+  largest_i_q_ = std::max(largest_i_q_, std::abs(i_q));
   char buf[256];
   // Winding over-temperature, with hysteresis.
   const Temperature& tw = e.winding_temperature;
@@ -61,7 +69,7 @@ std::vector<AlarmEvent> ConditionMonitor::update(const Estimate& e) {
       if (excess < 0.5 * s_.magnet_above_winding) demag_by_temperature_ = false;
     }
   }
-  history_.push_back({t, e.parameters, e.identifiable});
+  history_.push_back({t, e.parameters, e.identifiable, i_q});
   const double memory = std::max(s_.drift_window, s_.jump_window);
   while (history_.size() > 2 && history_.front().t < t - memory) history_.pop_front();
   // Demagnetisation (2): psi_f falling faster than any thermal cause allows: against the largest
@@ -73,7 +81,7 @@ std::vector<AlarmEvent> ConditionMonitor::update(const Estimate& e) {
     } else {
       double highest = 0.0, highest_t = t;
       for (const Point& old : history_)
-        if (old.ok[kPsiF] && t - old.t <= s_.jump_window && old.p[kPsiF] > highest) {
+        if (old.ok[kPsiF] && t - old.t <= s_.jump_window && old.p[kPsiF] > highest && sameCell(old.i_q, i_q)) {
           highest = old.p[kPsiF];
           highest_t = old.t;
         }
@@ -98,7 +106,7 @@ std::vector<AlarmEvent> ConditionMonitor::update(const Estimate& e) {
   for (int p : {kRs, kLd, kLq}) {
     if (!e.identifiable[p]) continue;
     LastValue& last = last_[p];
-    if (last.t >= 0 && t - last.t <= s_.jump_window) {
+    if (last.t >= 0 && t - last.t <= s_.jump_window && sameCell(last.i_q, i_q)) {
       const double change = e.parameters[p] / last.value - 1.0;
       if (std::abs(change) > s_.jump_fraction) {
         std::snprintf(buf, sizeof buf, "%s changed by %+.1f %% within %.3f s", parameterNames()[p].c_str(), 100 * change,
@@ -107,9 +115,9 @@ std::vector<AlarmEvent> ConditionMonitor::update(const Estimate& e) {
         jump_at_ = t;
       }
     }
-    last = {t, e.parameters[p]};
+    last = {t, e.parameters[p], i_q};
     for (const Point& old : history_) {
-      if (!old.ok[p] || t - old.t < 0.9 * s_.drift_window) continue;
+      if (!old.ok[p] || t - old.t < 0.9 * s_.drift_window || !sameCell(old.i_q, i_q)) continue;
       const double rate = (e.parameters[p] / old.p[p] - 1.0) / (t - old.t);
       if (std::abs(rate) > s_.drift_rate && !drift) {
         drift = true;
