@@ -165,8 +165,11 @@ void IdentifierNode::publishMap() {
   pub_map_.publish(m);
   if (map_csv_.empty()) return;
   try {
+    const std::string note = map_.coverageNote();
     writeFluxTable(map_.fluxTable(), map_csv_,
-                   "flux map learnt by the " + identifier_->method() + " identifier (doc/algorithm.md section 12)");
+                   "flux map learnt by the " + identifier_->method() + " identifier (doc/algorithm.md section 12)" +
+                       (note.empty() ? "" : "; " + note));
+    if (!note.empty()) ROS_WARN_THROTTLE(10.0, "map %s: %s", map_csv_.c_str(), note.c_str());
   } catch (const UserError& e) {
     ROS_INFO_THROTTLE(10.0, "map not written to %s yet: %s", map_csv_.c_str(), e.what());
   }

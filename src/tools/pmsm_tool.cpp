@@ -18,6 +18,8 @@
 #include "pmsm_param_id/simulation/drive_simulator.hpp"
 #include "pmsm_param_id/identification/metrics.hpp"
 #include "pmsm_param_id/identification/monitor.hpp"
+#include "pmsm_param_id/identification/motor_map.hpp"
+#include "pmsm_param_id/model/flux_map.hpp"
 #include "pmsm_param_id/identification/online_identifier.hpp"
 #include "pmsm_param_id/io/sample_csv.hpp"
 #include "pmsm_param_id/simulation/scenario.hpp"
@@ -27,6 +29,9 @@ using namespace pmsm_param_id;
 using nlohmann::json;
 
 namespace {
+/// Estimates go into the map of the motor (and the condition monitor) every this much drive time:
+/// the node publishes every 1 ms by default; 10 ms keeps ten-minute benches affordable.
+constexpr double kMapPeriod = 0.01;  // [s]
 
 std::vector<SimulatedSample> simulate(const Scenario& scenario) {
   DriveSimulator sim(scenario);
@@ -146,16 +151,35 @@ void printEstimate(const Estimate& e, bool thermal_enabled = false) {
               static_cast<unsigned long long>(e.counters.gaps));
 }
 
+/// The map of the motor as a table on stdout (doc/algorithm.md section 12).
+void printMap(const MotorMap& map) {
+  std::printf("  map of the motor: %zu cell(s), %llu estimate(s) not filed (window across a load change)\n",
+              map.cells().size(), static_cast<unsigned long long>(map.transientEstimates()));
+  for (const MotorMapCell& c : map.cells()) {
+    std::printf("    i_d %7.3g A, i_q %7.3g A, %5llu estimates:", c.i_d, c.i_q, static_cast<unsigned long long>(c.estimates));
+    for (int p = 0; p < kParameterCount; ++p)
+      if (c.hasIdentified(p)) std::printf("  %s %.5g", parameterNames()[p].c_str(), c.identified[p]);
+      else std::printf("  %s -", parameterNames()[p].c_str());
+    std::printf("\n");
+  }
+}
+
 int runIdentify(const std::string& csv, const std::string& method, const std::string& config_path, long seed,
-                const std::string& json_out, const LogFormat& format) {
+                const std::string& json_out, const LogFormat& format, const std::string& map_csv) {
   const IdentifierConfig config = configFor(config_path, method, seed);
   const SampleLog log = readSampleCsv(csv, format);
   auto id = makeIdentifier(config);
+  MotorMap map(config.map);
+  double next_map = -INFINITY;  // an estimate into the map every kMapPeriod of stamp time
   std::size_t warnings = 0;
   for (std::size_t k = 0; k < log.samples.size(); ++k) {
     const SampleStatus st = id->process(log.samples[k]);
     if (st != SampleStatus::Used && warnings++ < 20)
       std::fprintf(stderr, "%s:%zu: %s\n", csv.c_str(), log.line_numbers[k], toString(st));
+    if (st == SampleStatus::Used && log.samples[k].t >= next_map && id->statistics().hasBlocks()) {
+      map.add(id->estimate());
+      next_map = log.samples[k].t + kMapPeriod;
+    }
   }
   if (warnings > 20) std::fprintf(stderr, "%s: %zu more warnings not shown\n", csv.c_str(), warnings - 20);
   const Estimate e = id->estimate();
@@ -167,7 +191,15 @@ int runIdentify(const std::string& csv, const std::string& method, const std::st
     return 2;
   }
   printEstimate(e, config.thermal.enabled);
+  printMap(map);
   if (!json_out.empty()) writeJson(json_out, estimateJson(e));
+  if (!map_csv.empty()) {
+    const std::string note = map.coverageNote();
+    writeFluxTable(map.fluxTable(), map_csv,
+                   "flux map learnt by " + config.method + " from " + csv + (note.empty() ? "" : "; " + note));
+    std::printf("map written to %s\n", map_csv.c_str());
+    if (!note.empty()) std::fprintf(stderr, "warning: %s: %s\n", map_csv.c_str(), note.c_str());
+  }
   return 0;
 }
 
@@ -191,8 +223,22 @@ struct MonitorResult {
   std::vector<AlarmEvent> events;
 };
 
+/// Identified estimates along the run (every kMonitorPeriod) against the truth of their moment,
+/// and the map of the motor they make (doc/algorithm.md section 12).
+struct AlongRunResult {
+  std::array<int, kParameterCount> identified{}, wrong{};  ///< estimates identified; of them > 2 % off
+  ParameterVector worst{};                                  ///< largest |error| of an identified one [%]
+  int map_cells = 0, map_cells_complete = 0;                ///< cells; with L_d, L_q, psi_f identified
+  ParameterVector map_worst{};  ///< largest |error| of a cell's latest identified value vs the truth then [%]
+  std::shared_ptr<const FluxTable> map_table;               ///< exported map (null when none)
+  std::string map_problem;                                  ///< why not
+  std::string map_note;                                     ///< MotorMap::coverageNote()
+  double map_roundtrip = NAN;   ///< RMS current difference, re-simulated with the map / original [-]
+};
+
 struct RunResult {
   MonitorResult monitor;
+  AlongRunResult along;
   std::string method;
   std::uint64_t seed = 0;
   Estimate final;
@@ -232,9 +278,8 @@ std::map<std::string, PaperRow> readPaperTable(const std::string& path, const st
   return rows;
 }
 
-/// The monitor sees an estimate every kMonitorPeriod of drive time (the node publishes every 1 ms by
-/// default; 10 ms keeps ten-minute benches affordable and adds at most 10 ms to a latency).
-constexpr double kMonitorPeriod = 0.01;  // [s]
+/// The monitor sees an estimate every kMonitorPeriod of drive time (adds at most 10 ms to a latency).
+constexpr double kMonitorPeriod = kMapPeriod;
 
 RunResult runOne(const std::vector<SimulatedSample>& data, IdentifierConfig config, const std::string& method,
                  std::uint64_t seed, bool monitor = false) {
@@ -250,14 +295,30 @@ RunResult runOne(const std::vector<SimulatedSample>& data, IdentifierConfig conf
   trace.reserve(data.size() / stride + 1);
   double cpu = 0.0;
   ConditionMonitor condition = ConditionMonitor::forConfig(config);
+  MotorMap map(config.map);
+  std::vector<ParameterVector> cell_truth;  // per cell: the truth when its latest identified value was filed
   const std::size_t monitor_stride = std::max<std::size_t>(1, static_cast<std::size_t>(std::lround(kMonitorPeriod / Ts)));
   for (std::size_t k = 0; k < data.size(); ++k) {
     const auto t0 = std::chrono::steady_clock::now();
     id->process(data[k].sample);
     cpu += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     if (k % stride == 0 || k + 1 == data.size()) trace.push_back({data[k].sample.t, id->parameters(), data[k].truth});
-    if (monitor && k % monitor_stride == monitor_stride - 1) {
-      const Estimate e = id->estimate();
+    if (k % monitor_stride != monitor_stride - 1) continue;
+    const Estimate e = id->estimate();
+    for (int p = 0; p < kParameterCount; ++p) {
+      if (!e.identifiable[p]) continue;
+      const double error = std::abs(errorPercent(e.parameters[p], data[k].truth[p]));
+      ++r.along.identified[p];
+      r.along.wrong[p] += !(error <= 2.0);
+      r.along.worst[p] = std::max(r.along.worst[p], std::isfinite(error) ? error : INFINITY);
+    }
+    const int cell = map.add(e);
+    if (cell >= 0) {
+      cell_truth.resize(map.cells().size(), ParameterVector{});
+      for (int p = 0; p < kParameterCount; ++p)
+        if (e.identifiable[p]) cell_truth[static_cast<std::size_t>(cell)][p] = data[k].truth[p];
+    }
+    if (monitor) {
       MonitorResult& m = r.monitor;
       ++m.estimates;
       if (std::isfinite(e.winding_temperature.value)) {
@@ -272,6 +333,20 @@ RunResult runOne(const std::vector<SimulatedSample>& data, IdentifierConfig conf
       }
       for (const AlarmEvent& ev : condition.update(e)) m.events.push_back(ev);
     }
+  }
+  r.along.map_cells = static_cast<int>(map.cells().size());
+  for (std::size_t c = 0; c < map.cells().size(); ++c) {
+    const MotorMapCell& cell = map.cells()[c];
+    r.along.map_cells_complete += cell.hasIdentified(kLd) && cell.hasIdentified(kLq) && cell.hasIdentified(kPsiF);
+    for (int p = 0; p < kParameterCount; ++p)
+      if (cell.hasIdentified(p))
+        r.along.map_worst[p] = std::max(r.along.map_worst[p], std::abs(errorPercent(cell.identified[p], cell_truth[c][p])));
+  }
+  r.along.map_note = map.coverageNote();
+  try {
+    r.along.map_table = std::make_shared<const FluxTable>(map.fluxTable());
+  } catch (const UserError& e) {
+    r.along.map_problem = e.what();
   }
   r.final = id->estimate();
   r.truth = data.back().truth;
@@ -449,8 +524,86 @@ void printReference(const std::vector<std::string>& methods, const std::vector<s
   std::printf("\n(ekf, rls and wls minimise their own criteria, not this fitness; their gap is shown for comparison)\n");
 }
 
+/// RMS of the true-current difference between two runs of the same length over the RMS current [-].
+double currentDifference(const std::vector<SimulatedSample>& a, const std::vector<SimulatedSample>& b) {
+  double diff = 0.0, norm = 0.0;
+  for (std::size_t k = 0; k < a.size() && k < b.size(); ++k) {
+    diff += std::pow(b[k].i_d_true - a[k].i_d_true, 2) + std::pow(b[k].i_q_true - a[k].i_q_true, 2);
+    norm += a[k].i_d_true * a[k].i_d_true + a[k].i_q_true * a[k].i_q_true;
+  }
+  return norm > 0 ? std::sqrt(diff / norm) : NAN;
+}
+
+/// Every identified estimate along the run against the truth of its moment, and the map it made.
+void printAlongRun(const std::vector<std::string>& methods, const std::vector<std::vector<RunResult>>& results,
+                   bool roundtrip) {
+  std::printf("\nAlong the run (an estimate every %.0f ms against the truth of its moment; a saturating machine's\n"
+              "truth is that of the operating point, doc/algorithm.md section 11):\n%-22s", 1e3 * kMapPeriod, "");
+  for (const auto& m : methods) std::printf("%-24s", m.c_str());
+  for (int p = 0; p < kParameterCount; ++p) {
+    std::printf("\n  %-20s", (parameterNames()[p] + " wrong/ident.").c_str());
+    for (std::size_t m = 0; m < methods.size(); ++m) {
+      int wrong = 0, identified = 0;
+      double worst = 0.0;
+      for (const RunResult& r : results[m]) {
+        wrong += r.along.wrong[p];
+        identified += r.along.identified[p];
+        if (r.along.identified[p]) worst = std::max(worst, r.along.worst[p]);
+      }
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "%d/%d [%.2f%%]", wrong, identified, worst);
+      std::printf("%-24s", buf);
+    }
+  }
+  std::printf("\n  %-20s", "map cells (full)");
+  for (std::size_t m = 0; m < methods.size(); ++m) {
+    std::vector<double> cells, complete;
+    for (const RunResult& r : results[m]) {
+      cells.push_back(r.along.map_cells);
+      complete.push_back(r.along.map_cells_complete);
+    }
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.0f (%.0f) [min %.0f]", median(cells), median(complete),
+                  *std::min_element(complete.begin(), complete.end()));
+    std::printf("%-24s", buf);
+  }
+  std::printf("\n  %-20s", "map worst cell %");
+  for (std::size_t m = 0; m < methods.size(); ++m) {
+    std::vector<double> worst;
+    for (const RunResult& r : results[m])
+      worst.push_back(*std::max_element(r.along.map_worst.begin(), r.along.map_worst.end()));
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.2f [%.2f]", median(worst), *std::max_element(worst.begin(), worst.end()));
+    std::printf("%-24s", buf);
+  }
+  if (roundtrip) {
+    std::printf("\n  %-20s", "map round trip %");
+    for (std::size_t m = 0; m < methods.size(); ++m) {
+      std::vector<double> d;
+      int missing = 0;
+      for (const RunResult& r : results[m]) {
+        if (std::isfinite(r.along.map_roundtrip)) d.push_back(100.0 * r.along.map_roundtrip);
+        else ++missing;
+      }
+      char buf[64];
+      int partial = 0;
+      for (const RunResult& r : results[m]) partial += !r.along.map_note.empty();
+      if (d.empty()) std::snprintf(buf, sizeof buf, "no map (%d)", missing);
+      else std::snprintf(buf, sizeof buf, "%.3f [%.3f]%s%s", median(d), *std::max_element(d.begin(), d.end()),
+                         missing ? " *" : "", partial ? (" p" + std::to_string(partial)).c_str() : "");
+      std::printf("%-24s", buf);
+    }
+  }
+  std::printf("\n(wrong/ident.: estimates reported identified and > 2 %% off / reported identified, all seeds [worst |error|];"
+              "\n map cells: cells of operating points (full: with L_d, L_q, psi_f identified) median [fewest]; worst cell: a cell's latest"
+              "\n identified value against the truth when it was filed, median over seeds [worst]%s)\n",
+              roundtrip ? ";\n round trip: RMS current difference, the same run re-simulated with the learnt map, median [worst]; "
+                          "* some seeds exported no map;\n pN: in N seeds the map was partial (cells visited where L_d or psi_f "
+                          "was never identified: the map is extrapolated there)" : "");
+}
+
 int runBench(const std::string& scenario_path, int seeds, const std::string& methods_arg, const std::string& config_path,
-             const std::string& json_out, const std::string& reference, int threads, bool monitor) {
+             const std::string& json_out, const std::string& reference, int threads, bool monitor, bool map_roundtrip) {
   const Scenario base = loadScenario(scenario_path);
   const IdentifierConfig config = configFor(config_path, "", -1);
   const std::vector<std::string> methods = methodsFrom(methods_arg);
@@ -470,9 +623,17 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
         for (std::size_t k = data.size() > keep ? data.size() - keep : 0; k < data.size(); ++k) window.push(data[k].sample);
         references[static_cast<std::size_t>(s)] = paperReferenceOptimum(window.samples(), data.back().truth);
       }
-      for (std::size_t m = 0; m < methods.size(); ++m)
-        results[m][static_cast<std::size_t>(s)] =
-            runOne(data, config, methods[m], static_cast<std::uint64_t>(s) + 1, monitor);
+      for (std::size_t m = 0; m < methods.size(); ++m) {
+        RunResult& r = results[m][static_cast<std::size_t>(s)];
+        r = runOne(data, config, methods[m], static_cast<std::uint64_t>(s) + 1, monitor);
+        if (map_roundtrip && r.along.map_table) {  // the same run, the plant's magnetics from the learnt map
+          Scenario again = sc;
+          again.saturation = SaturationSettings{};
+          again.saturation.enabled = true;
+          again.saturation.flux_map = r.along.map_table;
+          r.along.map_roundtrip = currentDifference(data, simulate(again));
+        }
+      }
     }
   };
   std::vector<std::thread> pool;
@@ -621,6 +782,7 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
   std::printf("\n(* some seeds never stayed within 1 %%; recognition time = first time after which every parameter "
               "flagged identifiable at the end stays within 1 %% of truth)\n");
 
+  printAlongRun(methods, results, map_roundtrip);
   if (config.fitness != FitnessKind::Block) printReference(methods, results, references, config);
   const double onset = faultOnset(base);
   if (monitor) printMonitor(methods, results, onset);
@@ -653,6 +815,23 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
       j["confidently_wrong"] = json::object();
       for (int p = 0; p < kParameterCount; ++p)
         j["confidently_wrong"][parameterNames()[p]] = confidentlyWrong(r, p);
+      json along, map_json;
+      for (int p = 0; p < kParameterCount; ++p) {
+        const std::string name = parameterNames()[p];
+        along["identified"][name] = r.along.identified[p];
+        along["wrong"][name] = r.along.wrong[p];
+        along["worst_error_percent"][name] = numberOrNull(r.along.identified[p] ? r.along.worst[p] : NAN);
+        map_json["worst_cell_error_percent"][name] = numberOrNull(r.along.map_worst[p]);
+      }
+      along["period"] = kMapPeriod;
+      j["along_run"] = along;
+      map_json["cells"] = r.along.map_cells;
+      map_json["cells_identified"] = r.along.map_cells_complete;
+      map_json["exported"] = static_cast<bool>(r.along.map_table);
+      if (!r.along.map_problem.empty()) map_json["problem"] = r.along.map_problem;
+      if (!r.along.map_note.empty()) map_json["coverage_note"] = r.along.map_note;
+      map_json["roundtrip_current_rms_difference"] = numberOrNull(r.along.map_roundtrip);
+      j["map"] = map_json;
       records.push_back(j);
     }
   for (std::size_t k = 0; k < references.size() && config.fitness != FitnessKind::Block; ++k) {
@@ -807,6 +986,8 @@ int main(int argc, char** argv) {
   ident->add_option("--seed", seed, "random seed (swarm methods)");
   ident->add_option("--json", json_out, "write the final estimate as JSON");
   ident->add_option("--fitness", g_fitness_override, "block | paper | paper_one_step (swarm methods; overrides the config)");
+  std::string map_csv;
+  ident->add_option("--map-csv", map_csv, "write the map of the motor learnt from the log as a flux-map CSV");
   std::string format_path, time_unit, speed_unit, current_unit, voltage_unit, dq_scaling;
   std::vector<std::string> column_names;
   int pole_pairs = 0;
@@ -830,6 +1011,9 @@ int main(int argc, char** argv) {
   bench->add_option("--fitness", g_fitness_override, "block | paper | paper_one_step (swarm methods; overrides the config)");
   bool monitor = false;
   bench->add_flag("--monitor", monitor, "also run the condition monitor: temperature errors, alarm counts and latencies");
+  bool map_roundtrip = false;
+  bench->add_flag("--map-roundtrip", map_roundtrip,
+                  "re-simulate every seed with the flux map each method learnt; print the currents' RMS difference");
 
   int repeat = 20;
   auto* perf = app.add_subcommand("perf", "samples/s of every method on one core over a recorded run");
@@ -860,9 +1044,9 @@ int main(int argc, char** argv) {
       if (!dq_scaling.empty()) format.dq_scaling = dq_scaling;
       if (pole_pairs != 0) format.pole_pairs = pole_pairs;
       format.validate(format_path.empty() ? "command line" : format_path + " and the command line");
-      return runIdentify(csv, method, config, seed, json_out, format);
+      return runIdentify(csv, method, config, seed, json_out, format, map_csv);
     }
-    if (*bench) return runBench(scenario, seeds, methods, config, json_out, reference, threads, monitor);
+    if (*bench) return runBench(scenario, seeds, methods, config, json_out, reference, threads, monitor, map_roundtrip);
     if (*perf) return runPerf(scenario, methods, config, std::max(1, repeat), json_out, paper_scenario);
   } catch (const UserError& e) {  // bad configuration or input: exit status 2
     std::fprintf(stderr, "error: %s\n", e.what());

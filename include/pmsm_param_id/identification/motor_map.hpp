@@ -6,6 +6,7 @@
 #pragma once
 #include <array>
 #include <cstdint>
+#include <string>
 #include <limits>
 #include <vector>
 
@@ -51,6 +52,9 @@ class MotorMap {
   /// extended fit gave it, else 0), with one grid
   /// line per such cell's i_q and linear in i_q between them. UserError when no cell qualifies.
   FluxTable fluxTable() const;
+  /// Empty when every cell where L_q was identified also has L_d and psi_f; otherwise one line
+  /// naming the operating points where the exported map is interpolated or extrapolated instead.
+  std::string coverageNote() const;
 
  private:
   MotorMapSettings settings_;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "pmsm_param_id/io/config_error.hpp"
 
@@ -59,6 +60,19 @@ int MotorMap::add(const Estimate& e) {
       std::abs(e.fit.L_dq_std) <= 0.01 * e.parameters[kLq])
     c.identified_L_dq = e.fit.L_dq;
   return found;
+}
+
+std::string MotorMap::coverageNote() const {
+  std::string where;
+  for (const MotorMapCell& c : cells_)
+    if (c.hasIdentified(kLq) && !(c.hasIdentified(kLd) && c.hasIdentified(kPsiF))) {
+      char buf[48];
+      std::snprintf(buf, sizeof buf, "%s%.3g", where.empty() ? "" : ", ", c.i_q);
+      where += buf;
+    }
+  if (where.empty()) return "";
+  return "visited but not mapped (L_d or psi_f never identified there), the map is interpolated or extrapolated "
+         "there: i_q = " + where + " A";
 }
 
 FluxTable MotorMap::fluxTable() const {
