@@ -52,7 +52,8 @@ def read_bag(path):
         est_topics = [t for t, info in topics.items() if info.msg_type == "pmsm_param_id/ParameterEstimate"]
         event_topics = set(t for t, info in topics.items() if info.msg_type == "pmsm_param_id/ConditionEvent")
         map_topics = [t for t, info in topics.items() if info.msg_type == "pmsm_param_id/ParameterMap"]
-        for _, msg, _ in bag.read_messages(topics=map_topics):  # latched, growing: keep the latest
+        # Latched, growing: keep the latest. (An empty topic list would read every topic.)
+        for _, msg, _ in (bag.read_messages(topics=map_topics) if map_topics else []):
             data.maps[msg.method] = msg
         raw = []
         wanted = est_topics + sorted(event_topics) + ["/drive/true_parameters", "/drive/samples_batch"]
