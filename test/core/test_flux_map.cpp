@@ -58,6 +58,9 @@ TEST(FluxMap, LoaderNamesWhatIsWrongAndWhere) {
             std::string::npos);
   EXPECT_NE(loadError("i_d,i_q,psi_d,psi_q\n0,0,0.5,0\n1,0,0.51,0\n").find("at least two i_d and two i_q"), std::string::npos);
   EXPECT_NE(loadError("").find("empty flux map"), std::string::npos);
+  // psi_d rising steeply with i_q and psi_q with i_d: det(L) = 0.01 * 0.01 - 0.1 * 0.1 < 0.
+  EXPECT_NE(loadError("i_d,i_q,psi_d,psi_q\n0,0,0.5,0\n1,0,0.51,0.1\n0,1,0.6,0.01\n1,1,0.61,0.11\n").find("not positive definite"),
+            std::string::npos);
   // Columns in any order, comments and blank lines allowed.
   EXPECT_EQ(loadError("# from a dyno\npsi_q,psi_d,i_q,i_d\n0,0.5,0,0\n0,0.51,0,1\n\n0.1,0.5,1,0\n0.1,0.51,1,1\n"), "(accepted)");
 }

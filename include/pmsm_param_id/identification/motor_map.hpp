@@ -5,6 +5,7 @@
 // (model/flux_map.hpp), the format the simulator reads.
 #pragma once
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <limits>
@@ -33,7 +34,7 @@ struct MotorMapCell {
   double identified_L_dq = kNaN;
   double first_seen = kNaN, last_seen = kNaN;  ///< stamps of the first and latest estimate [s]
   std::uint64_t estimates = 0;       ///< estimates filed here
-  bool hasIdentified(int p) const { return identified[p] == identified[p]; }
+  bool hasIdentified(int p) const { return !std::isnan(identified[p]); }
 };
 
 class MotorMap {

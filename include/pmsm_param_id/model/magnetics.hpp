@@ -80,7 +80,7 @@ inline MagneticState currentsFromFlux(const MotorParameters& m, const Saturation
 
 /// The plant with saturating magnetics, flux linkages as the state:
 ///   d psi_d/dt = u_d - R i_d + omega_e psi_q,   d psi_q/dt = u_q - R i_q - omega_e psi_d,
-/// the torque 1.5 p (psi_d i_q - psi_q i_d) from the fluxes; g holds the currents' magnetics.
+/// the torque 1.5 p (psi_d i_q - psi_q i_d); (i_d, i_q) the currents that carry (psi_d, psi_q).
 struct FluxDerivative {
   double dpsi_d = 0.0, dpsi_q = 0.0, domega_m = 0.0, dtheta_e = 0.0;
 };

@@ -60,6 +60,18 @@ FluxTable::FluxTable(std::vector<double> i_d, std::vector<double> i_q, std::vect
         fail("psi_q must increase with i_q (a positive incremental L_q); it does not between i_q = " + number(i_q_[q]) +
              " and " + number(i_q_[q + 1]) + " A at i_d = " + number(i_d_[d]) + " A");
     }
+  // The incremental inductance matrix must be positive definite (a machine stores positive
+  // magnetic energy; the simulator's Newton step divides by its determinant): at each cell's corners.
+  for (std::size_t q = 0; q + 1 < i_q_.size(); ++q)
+    for (std::size_t d = 0; d + 1 < i_d_.size(); ++d)
+      for (double a : {1e-6, 1.0 - 1e-6})
+        for (double b : {1e-6, 1.0 - 1e-6}) {
+          const FluxLinkage f = at(i_d_[d] + a * (i_d_[d + 1] - i_d_[d]), i_q_[q] + b * (i_q_[q + 1] - i_q_[q]));
+          if (!(f.dpsi_d_di_d * f.dpsi_q_di_q - f.dpsi_d_di_q * f.dpsi_q_di_d > 0))
+            fail("the incremental inductance matrix is not positive definite in the cell i_d = " + number(i_d_[d]) +
+                 ".." + number(i_d_[d + 1]) + " A, i_q = " + number(i_q_[q]) + ".." + number(i_q_[q + 1]) +
+                 " A (cross terms larger than the self-inductances allow)");
+        }
 }
 
 FluxLinkage FluxTable::at(double i_d, double i_q) const {
