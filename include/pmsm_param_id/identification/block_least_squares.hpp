@@ -37,13 +37,14 @@ struct LinearBlockModel {
   static const LinearBlockModel& delay();        ///< + {a}: voltage delay [samples]
   static const LinearBlockModel& inverter();     ///< + {V}: inverter voltage along the current [V]
   static const LinearBlockModel& inverterWide(); ///< the same with twice the zero-crossing width
-  /// + {L_qq, L_dq}: a saturating machine at its operating point; L_q is then the secant inductance
-  /// (speed term only), L_qq the incremental one (Di_q), L_dq the cross-saturation (section 11).
-  static const LinearBlockModel& crossSaturation();
+  /// + {L_qq, L_dq}: a saturating machine about the q current i_bar (WindowSums::
+  /// crossLinearisationCurrent()); L_q is then the secant inductance psi_q(0, i_bar) / i_bar, psi_f
+  /// the flux psi_d(0, i_bar), L_qq the incremental q inductance, L_dq the cross-saturation (section 11).
+  static LinearBlockModel crossSaturation(double i_bar);
   /// The same with L_d free in the speed term (the unit check on a saturating machine).
-  static const LinearBlockModel& crossSaturationSpeedScale();
+  static LinearBlockModel crossSaturationSpeedScale(double i_bar);
   /// Any model + {L_qq, L_dq} (appended after its own parameters).
-  static LinearBlockModel withCrossSaturation(const LinearBlockModel& model);
+  static LinearBlockModel withCrossSaturation(const LinearBlockModel& model, double i_bar);
 };
 
 struct BlockFit {

@@ -55,6 +55,7 @@ enum BlockEntryD : int {
   kIntegralInverterWideD,  ///< int s_d dt with twice the zero-crossing width (model sensitivity) [s]
   kDeltaIqInD,           ///< i_q(t_k) - i_q(t_j) [A] (cross-saturation: L_dq di_q/dt in the d axis)
   kIntegralOmegaIdInD,   ///< int omega_e i_d dt [A] (cross-saturation: omega_e L_dq i_d in psi_q)
+  kIntegralOmegaInD,     ///< int omega_e dt [rad] (cross-saturation: psi_q(0, i_q) linear in a moving i_q)
   kBlockSizeD
 };
 /// Entries of the q-axis block vector.
@@ -68,6 +69,7 @@ enum BlockEntryQ : int {
   kIntegralUqStep,       ///< [V s]
   kIntegralInverterWideQ,  ///< [s]
   kDeltaIdInQ,           ///< i_d(t_k) - i_d(t_j) [A] (cross-saturation: L_dq di_d/dt in the q axis)
+  kIntegralOmegaIqInQ,   ///< int omega_e i_q dt [A] (cross-saturation: psi_d(0, i_q) linear in a moving i_q)
   kBlockSizeQ
 };
 using BlockD = Eigen::Matrix<double, kBlockSizeD, 1>;
@@ -92,6 +94,12 @@ struct WindowSums {
   double noise_variance_d = -1.0;    ///< known block-residual noise variance [A^2]; < 0: from the differences
   double noise_variance_q = -1.0;
   bool hasBlocks() const { return weight > 0; }
+  /// The q current the cross-saturation model linearises psi(0, i_q) at: the speed-weighted mean
+  /// over the window's blocks, int omega i_q . int omega / (int omega)^2 [A] (section 11).
+  double crossLinearisationCurrent() const {
+    const double w = mean_d(kIntegralOmegaInD, kIntegralOmegaInD);
+    return w > 0 ? mean_d(kIntegralOmegaIq, kIntegralOmegaInD) / w : 0.0;
+  }
 };
 
 class BlockStatistics {

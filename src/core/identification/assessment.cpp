@@ -54,7 +54,8 @@ SpeedScale measureSpeedScale(const WindowSums& window, const AssessmentSettings&
   if (fit.cross_saturation_modelled) {  // the d axis: L_dd in the speed term against the Di_d term
     Eigen::VectorXd s(7);
     s << fit.optimum[kRs], fit.optimum[kLd], fit.optimum[kLq], fit.optimum[kPsiF], fit.L_qq, fit.L_dq, fit.optimum[kLd];
-    out.fit = BlockLeastSquares::fit(window, LinearBlockModel::crossSaturationSpeedScale(), s, {}, a.variance_inflation);
+    out.fit = BlockLeastSquares::fit(window, LinearBlockModel::crossSaturationSpeedScale(window.crossLinearisationCurrent()),
+                                     s, {}, a.variance_inflation);
     const BlockFit& f = out.fit;
     out.c = f.beta(6) / f.beta(kLd);
     out.c_std = out.c * std::hypot(f.standard_deviation(6) / f.beta(6), f.standard_deviation(kLd) / f.beta(kLd));
@@ -142,7 +143,9 @@ std::string misspecification(const WindowSums& window, const AssessmentSettings&
   }
   // With a saturating machine modelled, every alternative keeps its L_qq and L_dq.
   const bool cross = fit.cross_saturation_modelled;
-  const auto alternative = [&](const LinearBlockModel& m) { return cross ? LinearBlockModel::withCrossSaturation(m) : m; };
+  const auto alternative = [&](const LinearBlockModel& m) {
+    return cross ? LinearBlockModel::withCrossSaturation(m, window.crossLinearisationCurrent()) : m;
+  };
   const auto startWith = [&](double extra) {
     Eigen::VectorXd s(cross ? 7 : 5);
     if (cross) s << start4, extra, fit.L_qq, fit.L_dq;
@@ -171,7 +174,8 @@ std::string misspecification(const WindowSums& window, const AssessmentSettings&
   if (!fit.cross_saturation_modelled && !fit.inverter_modelled) {
     Eigen::VectorXd s(6);
     s << start4, start4(kLq), 0.0;
-    const BlockFit f = BlockLeastSquares::fit(window, LinearBlockModel::crossSaturation(), s, {}, a.variance_inflation);
+    const BlockFit f = BlockLeastSquares::fit(window, LinearBlockModel::crossSaturation(window.crossLinearisationCurrent()),
+                                              s, {}, a.variance_inflation);
     const double Ldq = f.beta(5);
     const double omega = std::sqrt(std::max(0.0, window.mean_q(kIntegralOmega, kIntegralOmega))) / window.block_duration;
     const bool significant = std::isfinite(Ldq) && std::abs(Ldq) > kSignificance * f.standard_deviation(5) &&
@@ -215,10 +219,10 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     s(4) = stats.crossSaturationSet() ? stats.crossLqq() : start[kLq];
     s(5) = stats.crossSaturationSet() ? stats.crossLdq() : 0.0;
   }
-  const LinearBlockModel& model = estimate_inverter ? LinearBlockModel::inverter()
-                                  : estimate_cross  ? LinearBlockModel::crossSaturation()
-                                                    : LinearBlockModel::paper();
   const WindowSums window = stats.window();
+  const LinearBlockModel model = estimate_inverter ? LinearBlockModel::inverter()
+                                 : estimate_cross  ? LinearBlockModel::crossSaturation(window.crossLinearisationCurrent())
+                                                   : LinearBlockModel::paper();
   const BlockFit f = BlockLeastSquares::fit(window, model, s, {}, a.variance_inflation);
   if (!f.ok) return out;
   out.available = true;

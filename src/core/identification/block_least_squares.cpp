@@ -102,39 +102,47 @@ const LinearBlockModel& LinearBlockModel::inverter() {
   return model;
 }
 
-LinearBlockModel LinearBlockModel::withCrossSaturation(const LinearBlockModel& base_model) {
-  // + {L_qq, L_dq} after the model's own parameters:
-  //   d: int u_d = R int i_d + L_dd Di_d - L_q int omega i_q + L_dq (Di_q - int omega i_d) + ...
-  //   q: int u_q = R int i_q + L_qq Di_q + L_dd int omega i_d + psi int omega + L_dq Di_d + ...
+LinearBlockModel LinearBlockModel::withCrossSaturation(const LinearBlockModel& base_model, double i_bar) {
+  // + {L_qq, L_dq} after the model's own parameters. The flux linkages at i_d = 0 are lines in i_q
+  // about i_bar: psi_q(0, i_q) = L_q i_bar + L_qq (i_q - i_bar) (L_q the secant at i_bar, L_qq the
+  // incremental inductance), psi_d(0, i_q) = psi + L_dq (i_q - i_bar) (psi the flux at i_bar, L_dq
+  // by reciprocity the slope of psi_d in i_q as of psi_q in i_d):
+  //   d: int u_d = R int i_d + L_dd Di_d + L_dq (Di_q - int omega i_d)
+  //               - L_qq int omega i_q - i_bar (L_q - L_qq) int omega + ...
+  //   q: int u_q = R int i_q + L_qq Di_q + L_dq (Di_d + int omega i_q - i_bar int omega)
+  //               + L_dd int omega i_d + psi int omega + ...
+  // With i_q steady (torque control) int omega i_q = i_bar int omega and this is the model with
+  // L_q in the speed term; under a speed loop i_q moves with the torque ripple, and only the lines
+  // keep L_d and psi unbiased.
   LinearBlockModel m = base_model;
   m.name = base_model.name + "+cross_saturation";
   const int L_qq = addParameter(m, "L_qq"), L_dq = addParameter(m, "L_dq");
   m.G_q(kDeltaIq, kLq) = 0.0;
   m.G_q(kDeltaIq, L_qq) = 1.0;
+  m.G_d(kIntegralOmegaIq, kLq) = 0.0;
+  m.G_d(kIntegralOmegaInD, kLq) = -i_bar;
+  m.G_d(kIntegralOmegaIq, L_qq) = -1.0;
+  m.G_d(kIntegralOmegaInD, L_qq) = i_bar;
   m.G_d(kDeltaIqInD, L_dq) = 1.0;
   m.G_d(kIntegralOmegaIdInD, L_dq) = -1.0;
   m.G_q(kDeltaIdInQ, L_dq) = 1.0;
-  m.q_inductance = L_qq;
+  m.G_q(kIntegralOmegaIqInQ, L_dq) = 1.0;
+  m.G_q(kIntegralOmega, L_dq) = -i_bar;
+  m.q_inductance = L_qq;  // r_q = e_q / L_qq: the measured Di_q keeps the coefficient 1 (its noise is the output's)
   return m;
 }
 
-const LinearBlockModel& LinearBlockModel::crossSaturation() {
-  static const LinearBlockModel model = withCrossSaturation(paper());
-  return model;
-}
+LinearBlockModel LinearBlockModel::crossSaturation(double i_bar) { return withCrossSaturation(paper(), i_bar); }
 
-const LinearBlockModel& LinearBlockModel::crossSaturationSpeedScale() {
-  static const LinearBlockModel model = [] {
-    // {R_s, L_dd, L_q, psi_f, L_qq, L_dq, L_dd in the speed term}: with L_q's speed and step terms
-    // legitimately apart on a saturating machine, the unit is tested on the linear d axis.
-    LinearBlockModel m = withCrossSaturation(paper());
-    m.name = "cross_saturation_speed_scale";
-    const int L_d_speed = addParameter(m, "L_d_speed_term");  // 6: measureSpeedScale reads beta(6)
-    m.G_q(kIntegralOmegaId, kLd) = 0.0;
-    m.G_q(kIntegralOmegaId, L_d_speed) = 1.0;
-    return m;
-  }();
-  return model;
+LinearBlockModel LinearBlockModel::crossSaturationSpeedScale(double i_bar) {
+  // {R_s, L_dd, L_q, psi_f, L_qq, L_dq, L_dd in the speed term}: with L_q's speed and step terms
+  // legitimately apart on a saturating machine, the unit is tested on the linear d axis.
+  LinearBlockModel m = withCrossSaturation(paper(), i_bar);
+  m.name = "cross_saturation_speed_scale";
+  const int L_d_speed = addParameter(m, "L_d_speed_term");  // 6: measureSpeedScale reads beta(6)
+  m.G_q(kIntegralOmegaId, kLd) = 0.0;
+  m.G_q(kIntegralOmegaId, L_d_speed) = 1.0;
+  return m;
 }
 
 const LinearBlockModel& LinearBlockModel::inverterWide() {

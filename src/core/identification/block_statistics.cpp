@@ -199,9 +199,9 @@ bool BlockStatistics::add(const Sample& s) {
   BlockD zd;
   BlockQ zq;
   zd << c.i_d - a.i_d, c.I_d - a.I_d, c.OmIq - a.OmIq, c.U_d - a.U_d, c.Inv_d - a.Inv_d, c.Ustep_d - a.Ustep_d,
-      c.Wide_d - a.Wide_d, c.i_q - a.i_q, c.OmId - a.OmId;
+      c.Wide_d - a.Wide_d, c.i_q - a.i_q, c.OmId - a.OmId, c.Om - a.Om;
   zq << c.i_q - a.i_q, c.I_q - a.I_q, c.OmId - a.OmId, c.U_q - a.U_q, c.Om - a.Om, c.Inv_q - a.Inv_q,
-      c.Ustep_q - a.Ustep_q, c.Wide_q - a.Wide_q, c.i_d - a.i_d;
+      c.Ustep_q - a.Ustep_q, c.Wide_q - a.Wide_q, c.i_d - a.i_d, c.OmIq - a.OmIq;
   // Forgetting: every stored sum is implicitly multiplied by lambda; new terms enter with scale_.
   scale_ /= lambda_;
   rankOneUpper(S_d_, zd, scale_);
@@ -303,26 +303,34 @@ ProductQ BlockStatistics::meanDifferenceProductQ() const {
 
 double BlockStatistics::fitnessWithCrossSaturation(const ParameterVector& p) const {
   if (weight_ <= 0) return std::numeric_limits<double>::infinity();
-  const double inv_Ld = 1.0 / p[kLd], inv_Lqq = 1.0 / cross_L_qq_, Ldq = cross_L_dq_;
+  // psi_q(0, i_q) and psi_d(0, i_q) linear in i_q about i_bar, where L_q and psi_f are the secant and
+  // the flux (LinearBlockModel::withCrossSaturation); the q residual divided by L_qq.
+  const double inv_Ld = 1.0 / p[kLd], inv_Lq = 1.0 / cross_L_qq_, Ldq = cross_L_dq_, Lqq = cross_L_qq_;
+  const double w = S_d_(kIntegralOmegaInD, kIntegralOmegaInD);
+  const double i_bar = w > 0 ? S_d_(kIntegralOmegaIq, kIntegralOmegaInD) / w : 0.0;
   const double V = inverter_voltage_;
-  // r_d = [L_dd Di_d + L_dq (Di_q - int omega i_d) + R int i_d - L_q int omega i_q - int u_d] / L_dd
-  // r_q = [L_qq Di_q + L_dq Di_d + R int i_q + L_dd int omega i_d + psi int omega - int u_q] / L_qq
+  // r_d = [L_dd Di_d + L_dq (Di_q - int omega i_d) + R int i_d - L_qq int omega i_q
+  //        - i_bar (L_q - L_qq) int omega - int u_d] / L_dd
+  // r_q = [L_qq Di_q + L_dq (Di_d + int omega i_q) + R int i_q + L_dd int omega i_d
+  //        + (psi - i_bar L_dq) int omega - int u_q] / L_qq
   std::array<double, kBlockSizeD> wd{};
   std::array<double, kBlockSizeQ> wq{};
   wd[kDeltaId] = 1.0;
   wd[kIntegralId] = p[kRs] * inv_Ld;
-  wd[kIntegralOmegaIq] = -p[kLq] * inv_Ld;
+  wd[kIntegralOmegaIq] = -Lqq * inv_Ld;
+  wd[kIntegralOmegaInD] = -i_bar * (p[kLq] - Lqq) * inv_Ld;
   wd[kIntegralUd] = -inv_Ld;
   wd[kIntegralInverterD] = V * inv_Ld;
   wd[kDeltaIqInD] = Ldq * inv_Ld;
   wd[kIntegralOmegaIdInD] = -Ldq * inv_Ld;
   wq[kDeltaIq] = 1.0;
-  wq[kIntegralIq] = p[kRs] * inv_Lqq;
-  wq[kIntegralOmegaId] = p[kLd] * inv_Lqq;
-  wq[kIntegralUq] = -inv_Lqq;
-  wq[kIntegralOmega] = p[kPsiF] * inv_Lqq;
-  wq[kIntegralInverterQ] = V * inv_Lqq;
-  wq[kDeltaIdInQ] = Ldq * inv_Lqq;
+  wq[kIntegralIq] = p[kRs] * inv_Lq;
+  wq[kIntegralOmegaId] = p[kLd] * inv_Lq;
+  wq[kIntegralUq] = -inv_Lq;
+  wq[kIntegralOmega] = (p[kPsiF] - i_bar * Ldq) * inv_Lq;
+  wq[kIntegralInverterQ] = V * inv_Lq;
+  wq[kDeltaIdInQ] = Ldq * inv_Lq;
+  wq[kIntegralOmegaIqInQ] = Ldq * inv_Lq;
   double f = 0.0;
   for (int i = 0; i < kBlockSizeD; ++i) {
     if (wd[static_cast<std::size_t>(i)] == 0.0) continue;

@@ -13,13 +13,18 @@ MotorMap::MotorMap(const MotorMapSettings& settings) : settings_(settings) {
     throw ConfigError("map.cell_fraction must be in (0, 1)");
 }
 
+bool windowWithinOneCell(const OperatingPoint& op, double largest_current, const MotorMapSettings& settings,
+                         double share) {
+  const double tolerance = settings.cell_fraction * std::max(std::hypot(op.i_d, op.i_q), 0.05 * largest_current);
+  return op.i_q_spread <= share * tolerance;
+}
+
 int MotorMap::add(const Estimate& e) {
   const OperatingPoint& op = e.operating_point;
   if (!std::isfinite(op.i_d) || !std::isfinite(op.i_q)) return -1;
   const double magnitude = std::hypot(op.i_d, op.i_q);
   largest_current_ = std::max(largest_current_, magnitude);
-  const double tolerance = settings_.cell_fraction * std::max(magnitude, 0.05 * largest_current_);
-  if (!(op.i_q_spread <= 0.5 * tolerance)) {
+  if (!windowWithinOneCell(op, largest_current_, settings_)) {
     ++transient_;
     return -1;
   }
