@@ -64,7 +64,7 @@ struct MotorMapSettings {
   /// Two operating points share a cell when i_d and i_q each differ by at most this fraction of
   /// the larger current magnitude (of the two points, and at least 5 % of the largest current seen).
   /// An estimate is filed only when its window's data lie in one cell: the window's i_q spread
-  /// (standard deviation) at most half that tolerance; i_d may move more (the injection), L_d is
+  /// (standard deviation) at most a quarter of that tolerance; i_d may move more (the injection), L_d is
   /// the slope across it.
   double cell_fraction = 0.1;
 };
