@@ -37,13 +37,14 @@ struct MotorMapCell {
   bool hasIdentified(int p) const { return !std::isnan(identified[p]); }
 };
 
-/// The window's data lie within one cell of the map: its i_q spread (standard deviation) is at most
-/// `share` of the cell tolerance, cell_fraction times the larger of the operating current and 5 %
-/// of the largest current seen (MotorMapSettings). The map files only such estimates (share 1/4);
+/// The window's data lie within one cell of the map: its i_q spread (standard deviation, less the
+/// current noise the data show: sqrt(spread^2 - noise_std^2)) is at most `share` of the cell
+/// tolerance, cell_fraction times the larger of the operating current and 5 % of the largest
+/// current seen (MotorMapSettings). The map files only such estimates (share 1/4);
 /// on a saturating machine the identifier reports L_q, psi_f identified only then, and L_d only
 /// within 1/8 (doc/algorithm.md section 12).
 bool windowWithinOneCell(const OperatingPoint& op, double largest_current, const MotorMapSettings& settings,
-                         double share = 0.25);
+                         double noise_std, double share = 0.25);
 
 class MotorMap {
  public:

@@ -14,9 +14,11 @@ MotorMap::MotorMap(const MotorMapSettings& settings) : settings_(settings) {
 }
 
 bool windowWithinOneCell(const OperatingPoint& op, double largest_current, const MotorMapSettings& settings,
-                         double share) {
+                         double noise_std, double share) {
   const double tolerance = settings.cell_fraction * std::max(std::hypot(op.i_d, op.i_q), 0.05 * largest_current);
-  return op.i_q_spread <= share * tolerance;
+  const double noise = std::isfinite(noise_std) ? noise_std : 0.0;
+  const double moving = std::sqrt(std::max(0.0, op.i_q_spread * op.i_q_spread - noise * noise));
+  return moving <= share * tolerance;
 }
 
 int MotorMap::add(const Estimate& e) {
@@ -24,7 +26,7 @@ int MotorMap::add(const Estimate& e) {
   if (!std::isfinite(op.i_d) || !std::isfinite(op.i_q)) return -1;
   const double magnitude = std::hypot(op.i_d, op.i_q);
   largest_current_ = std::max(largest_current_, magnitude);
-  if (!windowWithinOneCell(op, largest_current_, settings_)) {
+  if (!windowWithinOneCell(op, largest_current_, settings_, e.fit.noise_std_q)) {
     ++transient_;
     return -1;
   }

@@ -339,8 +339,9 @@ Estimate OnlineIdentifier::estimate() const {
     // window: under a speed loop (saturated_speed_control.yaml, 30 seeds) identified values reached
     // 2.9 % off with half a cell, 2.1 % with a quarter, 1.4 % with an eighth (doc/algorithm.md
     // section 11); so it waits for half the spread the others wait for.
-    const bool steady = windowWithinOneCell(operating_point_, largest_operating_current_, config_.map);
-    const bool settled = windowWithinOneCell(operating_point_, largest_operating_current_, config_.map, 0.125);
+    const bool steady = windowWithinOneCell(operating_point_, largest_operating_current_, config_.map, fit.noise_std_q);
+    const bool settled =
+        windowWithinOneCell(operating_point_, largest_operating_current_, config_.map, fit.noise_std_q, 0.125);
     for (int p : {kLd, kLq, kPsiF}) {
       if (e.status[p] != ParameterStatus::Identified || (p == kLd ? settled : steady)) continue;
       e.status[p] = ParameterStatus::NotExcited;
