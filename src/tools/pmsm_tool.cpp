@@ -524,16 +524,6 @@ void printReference(const std::vector<std::string>& methods, const std::vector<s
   std::printf("\n(ekf, rls and wls minimise their own criteria, not this fitness; their gap is shown for comparison)\n");
 }
 
-/// RMS of the true-current difference between two runs of the same length over the RMS current [-].
-double currentDifference(const std::vector<SimulatedSample>& a, const std::vector<SimulatedSample>& b) {
-  double diff = 0.0, norm = 0.0;
-  for (std::size_t k = 0; k < a.size() && k < b.size(); ++k) {
-    diff += std::pow(b[k].i_d_true - a[k].i_d_true, 2) + std::pow(b[k].i_q_true - a[k].i_q_true, 2);
-    norm += a[k].i_d_true * a[k].i_d_true + a[k].i_q_true * a[k].i_q_true;
-  }
-  return norm > 0 ? std::sqrt(diff / norm) : NAN;
-}
-
 /// Every identified estimate along the run against the truth of its moment, and the map it made.
 void printAlongRun(const std::vector<std::string>& methods, const std::vector<std::vector<RunResult>>& results,
                    bool roundtrip) {
@@ -631,7 +621,7 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
           again.saturation = SaturationSettings{};
           again.saturation.enabled = true;
           again.saturation.flux_map = r.along.map_table;
-          r.along.map_roundtrip = currentDifference(data, simulate(again));
+          r.along.map_roundtrip = currentDifference(data, simulate(again)).relative_rms;
         }
       }
     }

@@ -24,21 +24,6 @@ std::string loadError(const std::string& text) {
   return "(accepted)";
 }
 
-/// RMS of the current difference between two runs over the RMS current, and the largest difference.
-struct RunDifference {
-  double relative_rms = 0.0, largest = 0.0;
-};
-RunDifference compareCurrents(const std::vector<SimulatedSample>& a, const std::vector<SimulatedSample>& b) {
-  double diff = 0.0, norm = 0.0, largest = 0.0;
-  for (std::size_t k = 0; k < a.size() && k < b.size(); ++k) {
-    const double dd = b[k].i_d_true - a[k].i_d_true, dq = b[k].i_q_true - a[k].i_q_true;
-    diff += dd * dd + dq * dq;
-    norm += a[k].i_d_true * a[k].i_d_true + a[k].i_q_true * a[k].i_q_true;
-    largest = std::max(largest, std::hypot(dd, dq));
-  }
-  return {std::sqrt(diff / norm), largest};
-}
-
 Scenario withFluxMap(Scenario s, std::shared_ptr<const FluxTable> table) {
   s.saturation = SaturationSettings{};
   s.saturation.enabled = true;
@@ -104,7 +89,7 @@ TEST(FluxMap, TheModelTabulatedDrivesTheSimulatorAsTheModelDoes) {
     }
   const auto model = run(s);
   const auto table = run(withFluxMap(s, std::make_shared<const FluxTable>(i_d, i_q, psi_d, psi_q)));
-  const RunDifference d = compareCurrents(model, table);
+  const CurrentDifference d = currentDifference(model, table);
   EXPECT_LT(d.relative_rms, 1e-3);
   EXPECT_LT(d.largest, 0.03);  // [A], against 6 A
   // And the truth it reports: the secant L_q and psi_d(0, i_q) of the table's cell.
@@ -166,7 +151,7 @@ TEST(MotorMap, FiveLoadLevelsMappedAndTheExportReproducesTheRun) {
   EXPECT_GE(mapped, 5);
   const std::string csv = ::testing::TempDir() + "learnt_map.csv";
   writeFluxTable(map.fluxTable(), csv, "learnt by the test");
-  const RunDifference learnt = compareCurrents(original, run(withFluxMap(s, std::make_shared<const FluxTable>(loadFluxTable(csv)))));
+  const CurrentDifference learnt = currentDifference(original, run(withFluxMap(s, std::make_shared<const FluxTable>(loadFluxTable(csv)))));
   EXPECT_LT(learnt.relative_rms, 0.01);
   // The same run with a map of the unsaturated machine (L_q0, psi_f, L_d0 everywhere).
   const std::vector<double> i_d{-3, 0, 3}, i_q{0, 5, 10, 15};
@@ -176,7 +161,7 @@ TEST(MotorMap, FiveLoadLevelsMappedAndTheExportReproducesTheRun) {
       psi_d.push_back(s.motor.psi_f + s.motor.L_d * d);
       psi_q.push_back(s.motor.L_q * q);
     }
-  const RunDifference linear = compareCurrents(original, run(withFluxMap(s, std::make_shared<const FluxTable>(i_d, i_q, psi_d, psi_q))));
+  const CurrentDifference linear = currentDifference(original, run(withFluxMap(s, std::make_shared<const FluxTable>(i_d, i_q, psi_d, psi_q))));
   EXPECT_GT(linear.relative_rms, 0.05);
 }
 

@@ -69,4 +69,12 @@ class DriveSimulator {
   double kp_speed_ = 0, ki_speed_ = 0, kp_d_ = 0, kp_q_ = 0, ki_current_ = 0;
 };
 
+/// How far two runs of the same scenario are apart in their true currents, sample by sample (the
+/// round trip of a learnt flux map, doc/algorithm.md section 12).
+struct CurrentDifference {
+  double relative_rms = 0.0;  ///< RMS of |i_b - i_a| over the RMS of |i_a| [-] (NaN without current)
+  double largest = 0.0;       ///< largest |i_b - i_a| [A]
+};
+CurrentDifference currentDifference(const std::vector<SimulatedSample>& a, const std::vector<SimulatedSample>& b);
+
 }  // namespace pmsm_param_id

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace pmsm_param_id {
 
@@ -263,6 +264,19 @@ SimulatedSample DriveSimulator::step() {
     magnet_temperature_ += Ts * dTm;
   }
   ++k_;
+  return out;
+}
+
+CurrentDifference currentDifference(const std::vector<SimulatedSample>& a, const std::vector<SimulatedSample>& b) {
+  double diff = 0.0, norm = 0.0;
+  CurrentDifference out;
+  for (std::size_t k = 0; k < a.size() && k < b.size(); ++k) {
+    const double dd = b[k].i_d_true - a[k].i_d_true, dq = b[k].i_q_true - a[k].i_q_true;
+    diff += dd * dd + dq * dq;
+    norm += a[k].i_d_true * a[k].i_d_true + a[k].i_q_true * a[k].i_q_true;
+    out.largest = std::max(out.largest, std::hypot(dd, dq));
+  }
+  out.relative_rms = norm > 0 ? std::sqrt(diff / norm) : std::numeric_limits<double>::quiet_NaN();
   return out;
 }
 
