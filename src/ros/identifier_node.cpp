@@ -3,7 +3,6 @@
 #include <cmath>
 
 #include "pmsm_param_id/ConditionEvent.h"
-#include "pmsm_param_id/ParameterMap.h"
 #include "pmsm_param_id/io/config_error.hpp"
 
 namespace pmsm_param_id {
@@ -136,43 +135,25 @@ void IdentifierNode::publish() {
 void IdentifierNode::publishMap() {
   if (!map_changed_) return;
   map_changed_ = false;
-  ParameterMap m;
-  m.header.stamp = clock_.stampOf(last_t_);
-  m.header.frame_id = frame_id_;
-  m.method = identifier_->method();
-  m.cell_fraction = map_.settings().cell_fraction;
-  m.transient_estimates = map_.transientEstimates();
-  for (const MotorMapCell& c : map_.cells()) {
-    ParameterMapCell cell;
-    cell.i_d = c.i_d;
-    cell.i_q = c.i_q;
-    cell.operating_omega_e = c.latest_point.omega_e;
-    for (int p = 0; p < kParameterCount; ++p) {
-      const std::size_t k = static_cast<std::size_t>(p);
-      cell.latest[k] = c.latest[p];
-      cell.latest_status[k] = static_cast<std::uint8_t>(c.latest_status[p]);
-      cell.identified[k] = c.identified[p];
-      cell.identified_i_q[k] = c.hasIdentified(p) ? c.identified_point[p].i_q : std::nan("");
-      if (c.hasIdentified(p)) cell.identified_stamp[k] = clock_.stampOf(c.identified_t[p]);
-      cell.identified_relative_uncertainty[k] = c.identified_uncertainty[p];
-    }
-    cell.L_dq = c.identified_L_dq;
-    cell.first_seen = clock_.stampOf(c.first_seen);
-    cell.last_seen = clock_.stampOf(c.last_seen);
-    cell.estimates = c.estimates;
-    m.cells.push_back(cell);
-  }
-  pub_map_.publish(m);
+  pub_map_.publish(toMessage(map_, identifier_->method(), clock_, last_t_, frame_id_));
   if (map_csv_.empty()) return;
+  FluxTable table;
   try {
-    const std::string note = map_.coverageNote();
-    writeFluxTable(map_.fluxTable(), map_csv_,
+    table = map_.fluxTable();
+  } catch (const UserError& e) {  // no cell has all three identified yet
+    ROS_INFO_THROTTLE(10.0, "map not written to %s yet: %s", map_csv_.c_str(), e.what());
+    return;
+  }
+  const std::string note = map_.coverageNote();
+  try {
+    writeFluxTable(table, map_csv_,
                    "flux map learnt by the " + identifier_->method() + " identifier (doc/algorithm.md section 12)" +
                        (note.empty() ? "" : "; " + note));
-    if (!note.empty()) ROS_WARN_THROTTLE(10.0, "map %s: %s", map_csv_.c_str(), note.c_str());
   } catch (const UserError& e) {
-    ROS_INFO_THROTTLE(10.0, "map not written to %s yet: %s", map_csv_.c_str(), e.what());
+    ROS_WARN_THROTTLE(10.0, "%s", e.what());
+    return;
   }
+  if (!note.empty()) ROS_WARN_THROTTLE(10.0, "map %s: %s", map_csv_.c_str(), note.c_str());
 }
 
 void IdentifierNode::onTimer(const ros::WallTimerEvent&) {

@@ -11,6 +11,8 @@
 #include "pmsm_param_id/DriveSampleBatch.h"
 #include "pmsm_param_id/ElectricalParameters.h"
 #include "pmsm_param_id/ParameterEstimate.h"
+#include "pmsm_param_id/ParameterMap.h"
+#include "pmsm_param_id/identification/motor_map.hpp"
 #include "pmsm_param_id/identification/online_identifier.hpp"
 #include "pmsm_param_id/io/config_error.hpp"
 #include "pmsm_param_id/model/sample.hpp"
@@ -129,6 +131,38 @@ inline ParameterEstimate toMessage(const Estimate& e, const ros::Time& stamp, co
   m.temperature = e.temperature;
   m.samples_used = e.counters.used;
   m.samples_skipped = e.counters.skipped();
+  return m;
+}
+
+/// The map of the motor as a message: stamps on the stream's clock, t = the last sample's time [s].
+inline ParameterMap toMessage(const MotorMap& map, const std::string& method, const StreamClock& clock, double t,
+                              const std::string& frame) {
+  ParameterMap m;
+  m.header.stamp = clock.stampOf(t);
+  m.header.frame_id = frame;
+  m.method = method;
+  m.cell_fraction = map.settings().cell_fraction;
+  m.transient_estimates = map.transientEstimates();
+  for (const MotorMapCell& c : map.cells()) {
+    ParameterMapCell cell;
+    cell.i_d = c.i_d;
+    cell.i_q = c.i_q;
+    cell.operating_omega_e = c.latest_point.omega_e;
+    for (int p = 0; p < kParameterCount; ++p) {
+      const std::size_t k = static_cast<std::size_t>(p);
+      cell.latest[k] = c.latest[p];
+      cell.latest_status[k] = static_cast<std::uint8_t>(c.latest_status[p]);
+      cell.identified[k] = c.identified[p];
+      cell.identified_i_q[k] = c.hasIdentified(p) ? c.identified_point[p].i_q : std::nan("");
+      if (c.hasIdentified(p)) cell.identified_stamp[k] = clock.stampOf(c.identified_t[p]);
+      cell.identified_relative_uncertainty[k] = c.identified_uncertainty[p];
+    }
+    cell.L_dq = c.identified_L_dq;
+    cell.first_seen = clock.stampOf(c.first_seen);
+    cell.last_seen = clock.stampOf(c.last_seen);
+    cell.estimates = c.estimates;
+    m.cells.push_back(cell);
+  }
   return m;
 }
 

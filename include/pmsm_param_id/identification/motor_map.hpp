@@ -16,7 +16,6 @@
 
 namespace pmsm_param_id {
 
-
 struct MotorMapCell {
   static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
   double i_d = 0.0, i_q = 0.0;       ///< the cell's centre: the operating point that opened it [A]
@@ -57,10 +56,10 @@ class MotorMap {
   const std::vector<MotorMapCell>& cells() const { return cells_; }
   const MotorMapSettings& settings() const { return settings_; }
   /// The flux linkages on a grid, from the cells where L_d, L_q and psi_f were identified:
-  /// psi_d(i_d, i_q) = psi_f(i_q) + L_d(i_q) i_d and psi_q(i_d, i_q) = L_q(i_q) i_q + L_dq(i_q) i_d (L_d incremental,
-  /// L_q secant, psi_f = psi_d(0, i_q): what the estimates stand for, section 11; L_dq where the
-  /// extended fit gave it, else 0), with one grid
-  /// line per such cell's i_q and linear in i_q between them. UserError when no cell qualifies.
+  ///   psi_d(i_d, i_q) = psi_f(i_q) + L_d(i_q) i_d,   psi_q(i_d, i_q) = L_q(i_q) i_q + L_dq(i_q) i_d
+  /// (L_d incremental, L_q secant, psi_f = psi_d(0, i_q): what the estimates stand for, section 11;
+  /// L_dq where the extended fit gave it, else 0), one grid row per such cell's i_q, linear in i_q
+  /// between them. UserError when no cell qualifies.
   FluxTable fluxTable() const;
   /// Empty when every cell where L_q was identified also has L_d and psi_f; otherwise one line
   /// naming the operating points where the exported map is interpolated or extrapolated instead.

@@ -94,7 +94,8 @@ FluxTable MotorMap::fluxTable() const {
   if (lines.empty())
     throw UserError("the motor map has no cell where L_d, L_q and psi_f were all identified: no flux map to export");
   std::sort(lines.begin(), lines.end(), [](const Line& a, const Line& b) { return a.i_q < b.i_q; });
-  // Cells closer in i_q than a tenth of the cell tolerance would make a near-vertical grid line: keep the later one.
+  // Rows closer in i_q than a fifth of the smallest cell tolerance (cell_fraction x 5 % of the
+  // largest current) would make a near-singular grid: keep the later one.
   std::vector<Line> kept;
   for (const Line& l : lines) {
     if (!kept.empty() && std::abs(l.i_q - kept.back().i_q) < 0.01 * settings_.cell_fraction * largest_current_) {
