@@ -240,6 +240,17 @@ class BadParameters(unittest.TestCase):
                 lines = [l for l in r.stdout.splitlines() if "FATAL" in l]
                 self.assertEqual(len(lines), 1, r.stdout)
                 self.assertIn(message, lines[0])
+            # (private parameters stay on this master: each run sets again what an earlier one spoiled)
+            for args, message in ((["_map_publish_period:=0"], "parameter ~map_publish_period: must be > 0"),
+                                  (["_map_publish_period:=1", "_map_csv:=3"],
+                                   "parameter ~map_csv: expected a text, got the integer 3")):
+                r = subprocess.run([os.path.join(DEVEL_LIB, "identifier"), "_method:=pso", "_seed:=1",
+                                    "_publish_period:=0.001"] + args, env=e, timeout=30,
+                                   stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                self.assertEqual(r.returncode, 1, r.stdout)
+                lines = [l for l in r.stdout.splitlines() if "FATAL" in l]
+                self.assertEqual(len(lines), 1, r.stdout)
+                self.assertIn(message, lines[0])
         finally:
             master.terminate()
             master.wait()
