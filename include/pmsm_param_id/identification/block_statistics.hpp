@@ -159,6 +159,8 @@ class BlockStatistics {
   /// set from the data's exact fit when magnetics.cross_saturation is on.
   void setCrossSaturation(double L_dq, double L_qq) { cross_L_dq_ = L_dq; cross_L_qq_ = L_qq; }
   bool crossSaturationSet() const { return cross_L_qq_ > 0; }
+  /// WindowSums::crossLinearisationCurrent() of the present window, from the stored sums [A].
+  double crossLinearisationCurrent() const;
   double crossLdq() const { return cross_L_dq_; }
   double crossLqq() const { return cross_L_qq_; }
   bool hasBlocks() const { return weight_ > 0; }

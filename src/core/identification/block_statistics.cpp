@@ -301,13 +301,17 @@ ProductQ BlockStatistics::meanDifferenceProductQ() const {
   return ProductQ(dS_q_.selfadjointView<Eigen::Upper>()) / stored_difference_weight_;
 }
 
+double BlockStatistics::crossLinearisationCurrent() const {
+  const double w = S_d_(kIntegralOmegaInD, kIntegralOmegaInD);  // upper triangle: row <= column
+  return w > 0 ? S_d_(kIntegralOmegaIq, kIntegralOmegaInD) / w : 0.0;
+}
+
 double BlockStatistics::fitnessWithCrossSaturation(const ParameterVector& p) const {
   if (weight_ <= 0) return std::numeric_limits<double>::infinity();
   // psi_q(0, i_q) and psi_d(0, i_q) linear in i_q about i_bar, where L_q and psi_f are the secant and
   // the flux (LinearBlockModel::withCrossSaturation); the q residual divided by L_qq.
   const double inv_Ld = 1.0 / p[kLd], inv_Lq = 1.0 / cross_L_qq_, Ldq = cross_L_dq_, Lqq = cross_L_qq_;
-  const double w = S_d_(kIntegralOmegaInD, kIntegralOmegaInD);
-  const double i_bar = w > 0 ? S_d_(kIntegralOmegaIq, kIntegralOmegaInD) / w : 0.0;
+  const double i_bar = crossLinearisationCurrent();
   const double V = inverter_voltage_;
   // r_d = [L_dd Di_d + L_dq (Di_q - int omega i_d) + R int i_d - L_qq int omega i_q
   //        - i_bar (L_q - L_qq) int omega - int u_d] / L_dd

@@ -23,10 +23,20 @@ void RlsIdentifier::update(const Sample& s, bool new_block, bool) {
   const double lambda = std::exp(-dt / tau);
   const BlockD& d = stats_.lastBlockD();  // {Di_d, I_d, W_d, U_d}
   const BlockQ& q = stats_.lastBlockQ();  // {Di_q, I_q, W_q, U_q, Om}
-  const Vec5 phi_d = (Vec5() << d(kIntegralId), d(kDeltaId), -d(kIntegralOmegaIq), 0.0, d(kIntegralInverterD)).finished();
-  const Vec5 phi_q = (Vec5() << q(kIntegralIq), q(kIntegralOmegaId), q(kDeltaIq), q(kIntegralOmega), q(kIntegralInverterQ)).finished();
+  Vec5 phi_d = (Vec5() << d(kIntegralId), d(kDeltaId), -d(kIntegralOmegaIq), 0.0, d(kIntegralInverterD)).finished();
+  Vec5 phi_q = (Vec5() << q(kIntegralIq), q(kIntegralOmegaId), q(kDeltaIq), q(kIntegralOmega), q(kIntegralInverterQ)).finished();
+  double y_d = d(kIntegralUd), y_q = q(kIntegralUq);
+  if (stats_.crossSaturationSet()) {
+    // A saturating machine (section 11): the swarms' model, with L_qq and L_dq from the data's exact
+    // fit taken as known and moved to the measured side; L_q and psi_f the secant and the flux at i_bar.
+    const double L_qq = stats_.crossLqq(), L_dq = stats_.crossLdq(), i_bar = stats_.crossLinearisationCurrent();
+    y_d -= L_dq * (d(kDeltaIqInD) - d(kIntegralOmegaIdInD)) - L_qq * (d(kIntegralOmegaIq) - i_bar * d(kIntegralOmegaInD));
+    phi_d(2) = -i_bar * d(kIntegralOmegaInD);
+    y_q -= L_qq * q(kDeltaIq) + L_dq * (q(kDeltaIdInQ) + q(kIntegralOmegaIqInQ) - i_bar * q(kIntegralOmega));
+    phi_q(2) = 0.0;
+  }
   P_ /= lambda;
-  for (const auto& [phi, y] : {std::make_pair(phi_d, d(kIntegralUd)), std::make_pair(phi_q, q(kIntegralUq))}) {
+  for (const auto& [phi, y] : {std::make_pair(phi_d, y_d), std::make_pair(phi_q, y_q)}) {
     const Vec5 Pphi = P_ * phi;
     const double denom = 1.0 + phi.dot(Pphi);
     const Vec5 gain = Pphi / denom;
