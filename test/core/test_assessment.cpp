@@ -321,15 +321,19 @@ TEST(Baselines, EkfJacobianMatchesFiniteDifferences) {
   x << 1.3, 7.9, 2.9, 4.4e-3, 13.1e-3, 0.175;
   const Sample k{0.0, -40.0, 120.0, 1.2, 8.0, 420.0};
   const double T = 1e-4;
-  EkfJacobian F;
-  ekfPredict(x, k, T, &F);
-  for (int j = 0; j < 6; ++j) {
-    const double h = 1e-6 * std::max(1.0, std::abs(x(j))) * (j >= 3 ? 1e-3 : 1.0);
-    EkfState xp = x, xm = x;
-    xp(j) += h;
-    xm(j) -= h;
-    const EkfState numeric = (ekfPredict(xp, k, T, nullptr) - ekfPredict(xm, k, T, nullptr)) / (2 * h);
-    for (int i = 0; i < 6; ++i) EXPECT_NEAR(F(i, j), numeric(i), 1e-6 * std::max(1.0, std::abs(numeric(i)))) << i << "," << j;
+  // The linear model, and a saturating machine's (known L_qq, L_dq about i_bar; section 11).
+  for (const EkfCrossSaturation& cross : {EkfCrossSaturation{}, EkfCrossSaturation{true, 8.0e-3, -1.5e-3, 7.5}}) {
+    EkfJacobian F;
+    ekfPredict(x, k, T, &F, cross);
+    for (int j = 0; j < 6; ++j) {
+      const double h = 1e-6 * std::max(1.0, std::abs(x(j))) * (j >= 3 ? 1e-3 : 1.0);
+      EkfState xp = x, xm = x;
+      xp(j) += h;
+      xm(j) -= h;
+      const EkfState numeric = (ekfPredict(xp, k, T, nullptr, cross) - ekfPredict(xm, k, T, nullptr, cross)) / (2 * h);
+      for (int i = 0; i < 6; ++i)
+        EXPECT_NEAR(F(i, j), numeric(i), 1e-6 * std::max(1.0, std::abs(numeric(i)))) << i << "," << j << " " << cross.on;
+    }
   }
 }
 

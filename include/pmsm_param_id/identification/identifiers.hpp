@@ -40,9 +40,18 @@ class SwarmIdentifier : public OnlineIdentifier {
 
 using EkfState = Eigen::Matrix<double, 6, 1>;     ///< {i_d, i_q, R_s, L_d, L_q, psi_f}
 using EkfJacobian = Eigen::Matrix<double, 6, 6>;
+/// A saturating machine's known cross terms for the EKF (doc/algorithm.md section 11): the
+/// incremental L_qq, the cross inductance L_dq and the q current i_bar the lines are taken about.
+struct EkfCrossSaturation {
+  bool on = false;
+  double L_qq = 0.0, L_dq = 0.0, i_bar = 0.0;
+};
 /// The EKF's process model: the paper's forward Euler (Eq. 11) over T [s] with the inputs of the
-/// previous sample k; jacobian (optional) receives d x_next / d x.
-EkfState ekfPredict(const EkfState& x, const Sample& k, double T, EkfJacobian* jacobian);
+/// previous sample k; jacobian (optional) receives d x_next / d x. With cross terms, the model of
+/// section 11: psi_q = L_q i_bar + L_qq (i_q - i_bar) + L_dq i_d, psi_d = psi_f + L_dq (i_q - i_bar)
+/// + L_d i_d, and the incremental matrix [[L_d, L_dq], [L_dq, L_qq]] on di/dt.
+EkfState ekfPredict(const EkfState& x, const Sample& k, double T, EkfJacobian* jacobian,
+                    const EkfCrossSaturation& cross = {});
 
 /// Extended Kalman filter on x = {i_d, i_q, R_s, L_d, L_q, psi_f}: the paper's forward-Euler
 /// model (Eq. 11) as process, the measured currents as measurement, random-walk parameters.

@@ -21,7 +21,40 @@ void EkfIdentifier::restart() {
   have_previous_ = false;
 }
 
-EkfState ekfPredict(const EkfState& x, const Sample& k, double T, EkfJacobian* jacobian) {
+namespace {
+EkfState ekfPredictCross(const EkfState& x, const Sample& k, double T, EkfJacobian* jacobian,
+                         const EkfCrossSaturation& c) {
+  const double id = x(0), iq = x(1), R = x(2), Ld = x(3), Lq = x(4), psi = x(5);
+  const double w = k.omega_e, Lqq = c.L_qq, Ldq = c.L_dq, ib = c.i_bar;
+  const double psi_q = Lq * ib + Lqq * (iq - ib) + Ldq * id;
+  const double psi_d = psi + Ldq * (iq - ib) + Ld * id;
+  const double fd = k.u_d - R * id + w * psi_q;
+  const double fq = k.u_q - R * iq - w * psi_d;
+  const double det = Ld * Lqq - Ldq * Ldq;
+  // di/dt = A f with A = [[L_d, L_dq], [L_dq, L_qq]]^-1
+  const double a00 = Lqq / det, a01 = -Ldq / det, a11 = Ld / det;
+  const double gd = a00 * fd + a01 * fq, gq = a01 * fd + a11 * fq;
+  EkfState xp = x;
+  xp(0) = id + T * gd;
+  xp(1) = iq + T * gq;
+  if (jacobian) {
+    // d f / d {i_d, i_q, R, L_d, L_q, psi}; L_d also in A: d(A f)/dL_d = A (df/dL_d - [g_d, 0]).
+    const double dfd[6] = {-R + w * Ldq, w * Lqq, -id, 0.0, w * ib, 0.0};
+    const double dfq[6] = {-w * Ld, -R - w * Ldq, -iq, -w * id, 0.0, -w};
+    EkfJacobian& F = *jacobian;
+    F.setIdentity();
+    for (int j = 0; j < 6; ++j) {
+      const double ud = dfd[j] - (j == 3 ? gd : 0.0), uq = dfq[j];
+      F(0, j) += T * (a00 * ud + a01 * uq);
+      F(1, j) += T * (a01 * ud + a11 * uq);
+    }
+  }
+  return xp;
+}
+}  // namespace
+
+EkfState ekfPredict(const EkfState& x, const Sample& k, double T, EkfJacobian* jacobian, const EkfCrossSaturation& cross) {
+  if (cross.on) return ekfPredictCross(x, k, T, jacobian, cross);
   const double id = x(0), iq = x(1), R = x(2), Ld = x(3), Lq = x(4), psi = x(5);
   const double w = k.omega_e;
   // The paper's forward-Euler model (Eq. 11), inputs of the previous sample.
@@ -77,7 +110,10 @@ void EkfIdentifier::update(const Sample& s, bool, bool continuity_broken) {
   }
   const double T = s.t - k.t;
   Mat6 F;
-  const Vec6 xp = ekfPredict(x_, k, T, &F);
+  EkfCrossSaturation cross;  // a saturating machine: the known cross terms of the data's exact fit
+  if (stats_.crossSaturationSet())
+    cross = {true, stats_.crossLqq(), stats_.crossLdq(), stats_.crossLinearisationCurrent()};
+  const Vec6 xp = ekfPredict(x_, k, T, &F, cross);
   Mat6 Q = Mat6::Zero();
   const double qc = sigma_p;
   Q(0, 0) = Q(1, 1) = qc * qc;
