@@ -1,6 +1,7 @@
 // Settings of every identification method, read from config/identifiers/*.yaml. Every default
 // holds for any PMSM: nothing here depends on one motor (doc/algorithm.md).
 #pragma once
+#include <algorithm>
 #include <cstdint>
 #include <string>
 
@@ -67,6 +68,11 @@ struct MotorMapSettings {
   /// (standard deviation) at most a quarter of that tolerance; i_d may move more (the injection), L_d is
   /// the slope across it.
   double cell_fraction = 0.1;
+  /// The cell tolerance [A] about a current of this magnitude [A]: cell_fraction times the larger
+  /// of it and 5 % of the largest current seen (the map, its one-cell rule and the monitor's cells).
+  double tolerance(double current, double largest_current) const {
+    return cell_fraction * std::max(current, 0.05 * largest_current);
+  }
 };
 
 struct TimeSettings {

@@ -59,7 +59,7 @@ class ConditionMonitor {
   bool sameCell(double i_q_a, double i_q_b) const;
   void set(AlarmKind k, bool on, double t, const std::string& text, std::vector<AlarmEvent>& out);
   AlarmSettings s_;
-  double cell_fraction_ = 0.0;
+  double cell_fraction_ = 0.0;  // 0: no cell rule
   double largest_i_q_ = 0.0;
   std::array<bool, 4> active_{};
   double demag_since_ = -1.0, overtemp_since_ = -1.0;

@@ -25,8 +25,8 @@ void ConditionMonitor::set(AlarmKind k, bool on, double t, const std::string& te
 
 bool ConditionMonitor::sameCell(double i_q_a, double i_q_b) const {
   if (!(cell_fraction_ > 0)) return true;
-  const double scale = std::max({std::abs(i_q_a), std::abs(i_q_b), 0.05 * largest_i_q_});
-  return std::abs(i_q_a - i_q_b) <= cell_fraction_ * scale;
+  const MotorMapSettings cells{cell_fraction_};
+  return std::abs(i_q_a - i_q_b) <= cells.tolerance(std::max(std::abs(i_q_a), std::abs(i_q_b)), largest_i_q_);
 }
 
 std::vector<AlarmEvent> ConditionMonitor::update(const Estimate& e) {

@@ -15,7 +15,7 @@ MotorMap::MotorMap(const MotorMapSettings& settings) : settings_(settings) {
 
 bool windowWithinOneCell(const OperatingPoint& op, double largest_current, const MotorMapSettings& settings,
                          double noise_std, double share) {
-  const double tolerance = settings.cell_fraction * std::max(std::hypot(op.i_d, op.i_q), 0.05 * largest_current);
+  const double tolerance = settings.tolerance(std::hypot(op.i_d, op.i_q), largest_current);
   const double noise = std::isfinite(noise_std) ? noise_std : 0.0;
   const double moving = std::sqrt(std::max(0.0, op.i_q_spread * op.i_q_spread - noise * noise));
   return moving <= share * tolerance;
@@ -34,9 +34,9 @@ int MotorMap::add(const Estimate& e) {
   double nearest = INFINITY;
   for (std::size_t k = 0; k < cells_.size(); ++k) {
     const MotorMapCell& c = cells_[k];
-    const double scale = std::max({magnitude, std::hypot(c.i_d, c.i_q), 0.05 * largest_current_});
+    const double tolerance = settings_.tolerance(std::max(magnitude, std::hypot(c.i_d, c.i_q)), largest_current_);
     const double dd = std::abs(op.i_d - c.i_d), dq = std::abs(op.i_q - c.i_q);
-    if (dd > settings_.cell_fraction * scale || dq > settings_.cell_fraction * scale) continue;
+    if (dd > tolerance || dq > tolerance) continue;
     if (std::hypot(dd, dq) < nearest) {
       nearest = std::hypot(dd, dq);
       found = static_cast<int>(k);
