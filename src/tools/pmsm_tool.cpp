@@ -29,9 +29,10 @@ using namespace pmsm_param_id;
 using nlohmann::json;
 
 namespace {
-/// Estimates go into the map of the motor (and the condition monitor) every this much drive time:
-/// the node publishes every 1 ms by default; 10 ms keeps ten-minute benches affordable.
-constexpr double kMapPeriod = 0.01;  // [s]
+/// bench and identify take an estimate every this much drive time: checked against the truth, filed
+/// in the map of the motor, fed to the condition monitor (adds at most 10 ms to an alarm's latency).
+/// The node publishes every 1 ms by default; 10 ms keeps ten-minute benches affordable.
+constexpr double kEstimatePeriod = 0.01;  // [s]
 
 std::vector<SimulatedSample> simulate(const Scenario& scenario) {
   DriveSimulator sim(scenario);
@@ -170,7 +171,7 @@ int runIdentify(const std::string& csv, const std::string& method, const std::st
   const SampleLog log = readSampleCsv(csv, format);
   auto id = makeIdentifier(config);
   MotorMap map(config.map);
-  double next_map = -INFINITY;  // an estimate into the map every kMapPeriod of stamp time
+  double next_map = -INFINITY;  // an estimate into the map every kEstimatePeriod of stamp time
   std::size_t warnings = 0;
   for (std::size_t k = 0; k < log.samples.size(); ++k) {
     const SampleStatus st = id->process(log.samples[k]);
@@ -178,7 +179,7 @@ int runIdentify(const std::string& csv, const std::string& method, const std::st
       std::fprintf(stderr, "%s:%zu: %s\n", csv.c_str(), log.line_numbers[k], toString(st));
     if (st == SampleStatus::Used && log.samples[k].t >= next_map && id->statistics().hasBlocks()) {
       map.add(id->estimate());
-      next_map = log.samples[k].t + kMapPeriod;
+      next_map = log.samples[k].t + kEstimatePeriod;
     }
   }
   if (warnings > 20) std::fprintf(stderr, "%s: %zu more warnings not shown\n", csv.c_str(), warnings - 20);
@@ -223,7 +224,7 @@ struct MonitorResult {
   std::vector<AlarmEvent> events;
 };
 
-/// Identified estimates along the run (every kMonitorPeriod) against the truth of their moment,
+/// Identified estimates along the run (every kEstimatePeriod) against the truth of their moment,
 /// and the map of the motor they make (doc/algorithm.md section 12).
 struct AlongRunResult {
   std::array<int, kParameterCount> identified{}, wrong{};  ///< estimates identified; of them > 2 % off
@@ -278,8 +279,6 @@ std::map<std::string, PaperRow> readPaperTable(const std::string& path, const st
   return rows;
 }
 
-/// The monitor sees an estimate every kMonitorPeriod of drive time (adds at most 10 ms to a latency).
-constexpr double kMonitorPeriod = kMapPeriod;
 
 RunResult runOne(const std::vector<SimulatedSample>& data, IdentifierConfig config, const std::string& method,
                  std::uint64_t seed, bool monitor = false) {
@@ -297,13 +296,13 @@ RunResult runOne(const std::vector<SimulatedSample>& data, IdentifierConfig conf
   ConditionMonitor condition = ConditionMonitor::forConfig(config);
   MotorMap map(config.map);
   std::vector<ParameterVector> cell_truth;  // per cell: the truth when its latest identified value was filed
-  const std::size_t monitor_stride = std::max<std::size_t>(1, static_cast<std::size_t>(std::lround(kMonitorPeriod / Ts)));
+  const std::size_t estimate_stride = std::max<std::size_t>(1, static_cast<std::size_t>(std::lround(kEstimatePeriod / Ts)));
   for (std::size_t k = 0; k < data.size(); ++k) {
     const auto t0 = std::chrono::steady_clock::now();
     id->process(data[k].sample);
     cpu += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     if (k % stride == 0 || k + 1 == data.size()) trace.push_back({data[k].sample.t, id->parameters(), data[k].truth});
-    if (k % monitor_stride != monitor_stride - 1) continue;
+    if (k % estimate_stride != estimate_stride - 1) continue;
     const Estimate e = id->estimate();
     for (int p = 0; p < kParameterCount; ++p) {
       if (!e.identifiable[p]) continue;
@@ -408,7 +407,7 @@ void printMonitor(const std::vector<std::string>& methods, const std::vector<std
                   double onset) {
   const int seeds = static_cast<int>(results.front().size());
   std::printf("\nCondition monitor (an estimate every %.0f ms; temperatures need a thermal: block in the config)\n",
-              1e3 * kMonitorPeriod);
+              1e3 * kEstimatePeriod);
   std::printf("%-26s", "");
   for (const auto& m : methods) std::printf("%-24s", m.c_str());
   const auto temperature_row = [&](const char* label, bool winding) {
@@ -528,7 +527,7 @@ void printReference(const std::vector<std::string>& methods, const std::vector<s
 void printAlongRun(const std::vector<std::string>& methods, const std::vector<std::vector<RunResult>>& results,
                    bool roundtrip) {
   std::printf("\nAlong the run (an estimate every %.0f ms against the truth of its moment; a saturating machine's\n"
-              "truth is that of the operating point, doc/algorithm.md section 11):\n%-22s", 1e3 * kMapPeriod, "");
+              "truth is that of the operating point, doc/algorithm.md section 11):\n%-22s", 1e3 * kEstimatePeriod, "");
   for (const auto& m : methods) std::printf("%-24s", m.c_str());
   for (int p = 0; p < kParameterCount; ++p) {
     std::printf("\n  %-20s", (parameterNames()[p] + " wrong/ident.").c_str());
@@ -617,11 +616,7 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
         RunResult& r = results[m][static_cast<std::size_t>(s)];
         r = runOne(data, config, methods[m], static_cast<std::uint64_t>(s) + 1, monitor);
         if (map_roundtrip && r.along.map_table) {  // the same run, the plant's magnetics from the learnt map
-          Scenario again = sc;
-          again.saturation = SaturationSettings{};
-          again.saturation.enabled = true;
-          again.saturation.flux_map = r.along.map_table;
-          r.along.map_roundtrip = currentDifference(data, simulate(again)).relative_rms;
+          r.along.map_roundtrip = currentDifference(data, simulate(withFluxMap(sc, r.along.map_table))).relative_rms;
         }
       }
     }
@@ -813,7 +808,7 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
         along["worst_error_percent"][name] = numberOrNull(r.along.identified[p] ? r.along.worst[p] : NAN);
         map_json["worst_cell_error_percent"][name] = numberOrNull(r.along.map_worst[p]);
       }
-      along["period"] = kMapPeriod;
+      along["period"] = kEstimatePeriod;
       j["along_run"] = along;
       map_json["cells"] = r.along.map_cells;
       map_json["cells_identified"] = r.along.map_cells_complete;

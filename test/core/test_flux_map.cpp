@@ -24,12 +24,6 @@ std::string loadError(const std::string& text) {
   return "(accepted)";
 }
 
-Scenario withFluxMap(Scenario s, std::shared_ptr<const FluxTable> table) {
-  s.saturation = SaturationSettings{};
-  s.saturation.enabled = true;
-  s.saturation.flux_map = std::move(table);
-  return s;
-}
 }  // namespace
 
 TEST(FluxMap, LoaderNamesWhatIsWrongAndWhere) {

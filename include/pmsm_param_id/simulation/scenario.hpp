@@ -2,6 +2,7 @@
 #pragma once
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <string>
 
 #include "pmsm_param_id/model/magnetics.hpp"
@@ -91,5 +92,9 @@ struct Scenario {
 
 /// Reads a scenario YAML file. Throws ConfigError with one line "FILE: key 'k': problem".
 Scenario loadScenario(const std::string& path);
+
+/// The same scenario with the plant's magnetics from a flux map instead of its own model (the map
+/// of the motor's round trip, doc/algorithm.md section 12).
+Scenario withFluxMap(Scenario s, std::shared_ptr<const FluxTable> map);
 
 }  // namespace pmsm_param_id

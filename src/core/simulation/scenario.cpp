@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <memory>
+#include <utility>
 
 #include "pmsm_param_id/io/config_error.hpp"
 #include "pmsm_param_id/io/yaml_reader.hpp"
@@ -119,6 +120,13 @@ Scenario loadScenario(const std::string& path) {
       if (y.has(key))
         y.fail(key, "not with saturation.flux_map_csv (the map's fluxes are used as they are, at one temperature)");
   y.rejectUnknownKeys();
+  return s;
+}
+
+Scenario withFluxMap(Scenario s, std::shared_ptr<const FluxTable> map) {
+  s.saturation = SaturationSettings{};
+  s.saturation.enabled = true;
+  s.saturation.flux_map = std::move(map);
   return s;
 }
 
