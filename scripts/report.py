@@ -215,18 +215,17 @@ def alarm_lines(data):
     return lines + [""]
 
 
+def cell_truth(data, cell, i):
+    """The truth of parameter i when a map cell's identified value was filed (None without truth)."""
+    true = truth_at(data, (cell.identified_stamp[i].to_nsec() - data.origin) * 1e-9)
+    return true[i] if true else None
+
+
 def map_points(data, method):
     """Per identified (cell, parameter) of a method's map: (i_q, parameter index, value, truth or None)."""
     msg = data.maps.get(method)
-    points = []
-    for cell in (msg.cells if msg else []):
-        for i in range(len(PARAMS)):
-            if not finite(cell.identified[i]):
-                continue
-            t = (cell.identified_stamp[i].to_nsec() - data.origin) * 1e-9
-            true = truth_at(data, t)
-            points.append((cell.identified_i_q[i], i, cell.identified[i], true[i] if true else None))
-    return points
+    return [(cell.identified_i_q[i], i, cell.identified[i], cell_truth(data, cell, i))
+            for cell in (msg.cells if msg else []) for i in range(len(PARAMS)) if finite(cell.identified[i])]
 
 
 def map_lines(data, methods):
@@ -246,8 +245,8 @@ def map_lines(data, methods):
                 if not finite(cell.identified[i]):
                     cells.append("-")
                     continue
-                true = truth_at(data, (cell.identified_stamp[i].to_nsec() - data.origin) * 1e-9)
-                err = 100.0 * (cell.identified[i] / true[i] - 1.0) if true and true[i] else None
+                true = cell_truth(data, cell, i)
+                err = 100.0 * (cell.identified[i] / true - 1.0) if true else None
                 cells.append("%s (%s)" % (fmt(cell.identified[i], ".5g"), fmt(err, "+.2f")))
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("| %s | %d estimates not filed (their window spanned a load change) | | | | | | |"
