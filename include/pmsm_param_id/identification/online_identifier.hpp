@@ -149,7 +149,7 @@ class OnlineIdentifier {
   };
   mutable PendingReference pending_R_reference_, pending_psi_reference_;
   OperatingPoint operating_point_;         // exponentially forgotten means, as the fitness window
-  double variance_i_d_ = 0.0, variance_i_q_ = 0.0;  // and the currents' variances, the same way
+  double variance_i_d_ = 0.0, variance_i_q_ = 0.0;  // and the currents' variances (the spreads, when read)
   mutable double largest_operating_current_ = 0.0;  // [A], as the map's cells scale with it
   double first_sample_t_ = std::numeric_limits<double>::quiet_NaN();  // of the run (thermal learning)
   double operating_alpha_ = 0.0, operating_alpha_tau_ = -1.0;  // thermal references learnt at the start

@@ -146,16 +146,14 @@ SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status
   }
   OperatingPoint& op = operating_point_;
   if (std::isnan(op.i_d)) {
-    op = {s.i_d, s.i_q, s.omega_e, 0.0, 0.0};
-  } else {  // exponentially weighted mean and variance (West's update)
+    op = {s.i_d, s.i_q, s.omega_e};
+  } else {  // exponentially weighted mean and variance (West's update; the spreads in estimate())
     const double a = operating_alpha_, dd = s.i_d - op.i_d, dq = s.i_q - op.i_q;
     op.i_d += a * dd;
     op.i_q += a * dq;
     op.omega_e += a * (s.omega_e - op.omega_e);
     variance_i_d_ = (1.0 - a) * (variance_i_d_ + a * dd * dd);
     variance_i_q_ = (1.0 - a) * (variance_i_q_ + a * dq * dq);
-    op.i_d_spread = std::sqrt(variance_i_d_);
-    op.i_q_spread = std::sqrt(variance_i_q_);
   }
   if (!box_.valid && new_block) tryStart();
   if (box_.valid) update(s, new_block, broken_);
@@ -332,23 +330,26 @@ Estimate OnlineIdentifier::estimate() const {
   // On a saturating machine the estimates stand for one operating point (section 11). A window
   // whose q current moved across more than a cell of the map (a load change) fits the extended
   // model's lines in i_q through several points, which is no point's L_d, L_q or psi_f.
-  if (std::isfinite(operating_point_.i_q))
-    largest_operating_current_ = std::max(largest_operating_current_, std::hypot(operating_point_.i_d, operating_point_.i_q));
+  OperatingPoint op = operating_point_;
+  if (std::isfinite(op.i_q)) {
+    op.i_d_spread = std::sqrt(variance_i_d_);
+    op.i_q_spread = std::sqrt(variance_i_q_);
+    largest_operating_current_ = std::max(largest_operating_current_, std::hypot(op.i_d, op.i_q));
+  }
   if (fit.cross_saturation_modelled) {
     // L_d, the slope across the injection, is the most sensitive to a load change still in the
     // window: under a speed loop (saturated_speed_control.yaml, 30 seeds) identified values reached
     // 2.9 % off with half a cell, 2.1 % with a quarter, 1.4 % with an eighth (doc/algorithm.md
     // section 11); so it waits for half the spread the others wait for.
-    const bool steady = windowWithinOneCell(operating_point_, largest_operating_current_, config_.map, fit.noise_std_q);
-    const bool settled =
-        windowWithinOneCell(operating_point_, largest_operating_current_, config_.map, fit.noise_std_q, 0.125);
+    const bool steady = windowWithinOneCell(op, largest_operating_current_, config_.map, fit.noise_std_q);
+    const bool settled = windowWithinOneCell(op, largest_operating_current_, config_.map, fit.noise_std_q, 0.125);
     for (int p : {kLd, kLq, kPsiF}) {
       if (e.status[p] != ParameterStatus::Identified || (p == kLd ? settled : steady)) continue;
       e.status[p] = ParameterStatus::NotExcited;
       char buf[200];
       std::snprintf(buf, sizeof buf,
                     "the window spans a load change (i_q %.3g A, spread %.2g A): on a saturating machine this "
-                    "stands for no single operating point", operating_point_.i_q, operating_point_.i_q_spread);
+                    "stands for no single operating point", op.i_q, op.i_q_spread);
       e.reason[p] = buf;
     }
   }
@@ -392,7 +393,7 @@ Estimate OnlineIdentifier::estimate() const {
   bool positive = true;
   for (double v : e.parameters) positive = positive && std::isfinite(v) && v > 0;
   e.fitness = positive ? fitnessAt(e.parameters) : std::numeric_limits<double>::quiet_NaN();
-  e.operating_point = operating_point_;
+  e.operating_point = op;
   return e;
 }
 
