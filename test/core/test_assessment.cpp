@@ -535,6 +535,41 @@ TEST(RealDriveIdentification, NoConfidentlyWrongNumberOnTheRealisticScenarios) {
   }
 }
 
+// Along the run, not only at its end (bench's check, every 10 ms): the two cases it found. On
+// noise-free data without injection, wls (the data's exact optimum) stated L_d to +-0.2 % after the
+// speed ramp while 8-160 % off, because the noise from the block differences is near zero and a
+// model error below the fit floor was not counted; on a realistic drive a misfit the fit check
+// accepts (3.6 x the noise) left SAPSO's psi_f 2.06 % off at a stated +-0.93 %. The parameters'
+// uncertainties now assume at least the residual the fit leaves and the fit floor.
+TEST(Assessment, NothingIdentifiedIsWrongAlongTheRun) {
+  const auto alongTheRun = [](const std::vector<SimulatedSample>& data, const IdentifierConfig& c, const char* what) {
+    auto id = makeIdentifier(c);
+    const std::size_t stride = std::max<std::size_t>(1, static_cast<std::size_t>(std::lround(0.01 / (data[1].sample.t - data[0].sample.t))));
+    int identified = 0;
+    for (std::size_t k = 0; k < data.size(); ++k) {
+      id->process(data[k].sample);
+      if (k % stride != stride - 1) continue;
+      const Estimate e = id->estimate();
+      for (int p = 0; p < kParameterCount; ++p) {
+        if (!e.identifiable[p]) continue;
+        ++identified;
+        EXPECT_LT(std::abs(errorPercent(e.parameters[p], data[k].truth[p])), 2.0)
+            << what << " " << c.method << " " << parameterNames()[p] << " at t = " << data[k].sample.t;
+      }
+    }
+    return identified;
+  };
+  IdentifierConfig wls;
+  wls.method = "wls";
+  EXPECT_GT(alongTheRun(test_helpers::run(test_helpers::scenario("wc1_no_injection.yaml")), wls, "wc1_no_injection"), 0);
+  Scenario realistic = test_helpers::scenario("wc1_realistic.yaml");
+  realistic.seed = 2;
+  IdentifierConfig sapso = realDriveConfig();
+  sapso.method = "sapso";
+  sapso.seed = 2;
+  EXPECT_GT(alongTheRun(test_helpers::run(realistic), sapso, "wc1_realistic"), 0);
+}
+
 // wls is the exact minimiser of the block fitness: no method ends below it on the same window,
 // and the swarms end close to it.
 TEST(Wls, NoMethodEndsBelowTheExactOptimum) {

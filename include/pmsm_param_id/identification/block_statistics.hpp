@@ -93,6 +93,10 @@ struct WindowSums {
   double block_duration = 0.0;       ///< [s]
   double noise_variance_d = -1.0;    ///< known block-residual noise variance [A^2]; < 0: from the differences
   double noise_variance_q = -1.0;
+  /// Floor of the noise variance behind the parameters' standard deviations [A^2]: the residual
+  /// the fit check accepts as a fit on noise-free data (fit_floor_relative), so that what it cannot
+  /// tell from zero does not state a weakly excited parameter as known.
+  double min_noise_variance = 0.0;
   bool hasBlocks() const { return weight > 0; }
   /// The q current the cross-saturation model linearises psi(0, i_q) at: the speed-weighted mean
   /// over the window's blocks, int omega i_q . int omega / (int omega)^2 [A] (section 11).

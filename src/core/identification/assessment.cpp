@@ -219,7 +219,13 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     s(4) = stats.crossSaturationSet() ? stats.crossLqq() : start[kLq];
     s(5) = stats.crossSaturationSet() ? stats.crossLdq() : 0.0;
   }
-  const WindowSums window = stats.window();
+  WindowSums window = stats.window();
+  // Floor: a residual below fit_floor_relative of the RMS current is a fit even without noise; the
+  // parameters' uncertainties assume at least that much residual (WindowSums::min_noise_variance).
+  const double current_ms = (window.mean_d(kIntegralId, kIntegralId) + window.mean_q(kIntegralIq, kIntegralIq)) /
+                            (window.block_duration * window.block_duration);
+  const double floor2 = a.fit_floor_relative * a.fit_floor_relative * current_ms;
+  window.min_noise_variance = floor2;
   const LinearBlockModel model = estimate_inverter ? LinearBlockModel::inverter()
                                  : estimate_cross  ? LinearBlockModel::crossSaturation(window.crossLinearisationCurrent())
                                                    : LinearBlockModel::paper();
@@ -255,12 +261,9 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   out.noise_std_d = std::sqrt(0.5 * f.noise_variance_d);
   out.noise_std_q = std::sqrt(0.5 * f.noise_variance_q);
   out.optimum_fitness = f.fitness();
-  // Floor: a residual below fit_floor_relative of the RMS current is a fit even without noise.
   const ProductD& Sd = window.mean_d;
   const ProductQ& Sq = window.mean_q;
   const double Tb = window.block_duration;
-  const double current_ms = (Sd(kIntegralId, kIntegralId) + Sq(kIntegralIq, kIntegralIq)) / (Tb * Tb);
-  const double floor2 = a.fit_floor_relative * a.fit_floor_relative * current_ms;
   // Between samples the currents are not straight lines: at speed the applied voltage turns by
   // omega_e T_s per period, so the current bends within the period by about (omega_e T_s) u T_s / L,
   // which trapezoidal integrals miss: relative to the current, (omega_e T_s)^2 u T_s / (L i).

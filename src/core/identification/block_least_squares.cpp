@@ -254,8 +254,11 @@ BlockFit BlockLeastSquares::fit(const WindowSums& stats, const LinearBlockModel&
   if (stats.noise_variance_q >= 0) out.noise_variance_q = stats.noise_variance_q;
 
   // Information of the window: effective block count x J^T S J / sigma^2 per axis.
-  const double floor_d = std::max(out.noise_variance_d, 1e-30);
-  const double floor_q = std::max(out.noise_variance_q, 1e-30);
+  // sigma^2 is at least the residual the fit leaves (a misfit the fit check still accepts, up to
+  // max_fit_ratio times the noise, widens the uncertainty instead of biasing a stated +-0.9 %), and
+  // at least the fit floor of noise-free data (WindowSums::min_noise_variance).
+  const double floor_d = std::max({out.noise_variance_d, out.mean_square_d, stats.min_noise_variance, 1e-30});
+  const double floor_q = std::max({out.noise_variance_q, out.mean_square_q, stats.min_noise_variance, 1e-30});
   A = stats.weight * (Jd.transpose() * Sd * Jd / floor_d + Jq.transpose() * Sq * Jq / floor_q);
   // Covariance over the free entries. A direction with (almost) no information makes the entry
   // that dominates it undetermined; that entry is set aside and the rest are evaluated without it
