@@ -143,17 +143,34 @@ bool BlockStatistics::add(const Sample& s) {
   if (count_ > 0) {
     const Cumulative& p = ring_[(head_ + count_ - 1) % cap];
     const bool delayed = settings_.voltage_delay_samples > 0;
+    const double dt = s.t - p.t;
     c.applied_d = delayed ? p.u_d : s.u_d;
     c.applied_q = delayed ? p.u_q : s.u_q;
+    if (delayed && std::isfinite(p.theta_e) && std::isfinite(s.theta_e)) {
+      const double miss = std::remainder(p.theta_e + p.omega_e * dt - s.theta_e, 2.0 * M_PI);
+      const double cm = std::cos(miss), sm = std::sin(miss);
+      c.applied_d = cm * p.u_d - sm * p.u_q;
+      c.applied_q = sm * p.u_d + cm * p.u_q;
+    }
     c.applied_prev_d = p.applied_d;
     c.applied_prev_q = p.applied_q;
-    const double dt = s.t - p.t;
     const double h = 0.5 * dt;
     c.I_d = p.I_d + h * (p.i_d + s.i_d);
     c.I_q = p.I_q + h * (p.i_q + s.i_q);
-    c.OmIq = p.OmIq + h * (p.omega_e * p.i_q + s.omega_e * s.i_q);
-    c.OmId = p.OmId + h * (p.omega_e * p.i_d + s.omega_e * s.i_d);
-    c.Om = p.Om + h * (p.omega_e + s.omega_e);
+    if (std::isfinite(p.theta_e) && std::isfinite(s.theta_e)) {
+      // With the logged angle, omega_e dt is the angle's increment (unwrapped about the logged
+      // speed's trapezoid): exact whatever filters the logged speed went through.
+      const double predicted = h * (p.omega_e + s.omega_e);
+      const double dtheta = predicted + std::remainder(s.theta_e - p.theta_e - predicted, 2.0 * M_PI);
+      const double g = 0.5 * dtheta;
+      c.OmIq = p.OmIq + g * (p.i_q + s.i_q);
+      c.OmId = p.OmId + g * (p.i_d + s.i_d);
+      c.Om = p.Om + dtheta;
+    } else {
+      c.OmIq = p.OmIq + h * (p.omega_e * p.i_q + s.omega_e * s.i_q);
+      c.OmId = p.OmId + h * (p.omega_e * p.i_d + s.omega_e * s.i_d);
+      c.Om = p.Om + h * (p.omega_e + s.omega_e);
+    }
     if (settings_.stationary_hold) {
       // The vector held in the stator frame turns by -omega_e t in the rotor frame:
       // int_0^dt e^{-j w t} dt = sin(w dt)/w - j (1 - cos(w dt))/w, applied to u_d + j u_q.
