@@ -42,6 +42,19 @@ struct WindowSettings {
   double inverter_zero_crossing_current = 0.0;  ///< the inverter error passes zero as tanh(i / this) [A]; 0 = sign
   bool inverter_width_sensitivity = false;  ///< keep the twice-the-width column (the inverter model is on)
   int voltage_delay_samples = 0;           ///< 0: u(t_k) acts on [t_k, t_k+1); 1: on [t_k+1, t_k+2)
+  /// The phase-current sensors' offsets are profiled out of every fit (needs the logged angle): a
+  /// constant stator-frame offset o adds o_a (cos theta) + o_b (sin theta) terms to each block
+  /// residual, so the statistics are projected off Dcos, Dsin, int cos, int sin (a Schur complement).
+  bool sensor_offsets = false;
+};
+
+/// Entries of the sensor-offset block vector, shared by both axes (WindowSettings::sensor_offsets).
+enum OffsetEntry : int {
+  kDeltaCos = 0,     ///< cos theta_e(t_k) - cos theta_e(t_j) [-]
+  kDeltaSin,         ///< [-]
+  kIntegralCos,      ///< int cos theta_e dt [s]
+  kIntegralSin,      ///< [s]
+  kOffsetBlockSize
 };
 
 /// Entries of the d-axis block vector.
@@ -76,6 +89,10 @@ using BlockD = Eigen::Matrix<double, kBlockSizeD, 1>;
 using BlockQ = Eigen::Matrix<double, kBlockSizeQ, 1>;
 using ProductD = Eigen::Matrix<double, kBlockSizeD, kBlockSizeD>;
 using ProductQ = Eigen::Matrix<double, kBlockSizeQ, kBlockSizeQ>;
+using OffsetBlock = Eigen::Matrix<double, kOffsetBlockSize, 1>;
+using OffsetProduct = Eigen::Matrix<double, kOffsetBlockSize, kOffsetBlockSize>;
+using OffsetCrossD = Eigen::Matrix<double, kBlockSizeD, kOffsetBlockSize>;
+using OffsetCrossQ = Eigen::Matrix<double, kBlockSizeQ, kOffsetBlockSize>;
 
 /// The inverter error shape s of a sample (see the header comment): from the angle when the sample
 /// has it, else (4/pi) i/|i|. Unitless, |s| ~ 1. With the angle, `phase` (if given) receives the
@@ -137,8 +154,10 @@ class BlockStatistics {
     // Quadratic forms on the upper triangles (the lower ones are not maintained), with the trip
     // counts fixed at compile time so that the compiler unrolls them.
     // (The q form continues the d form's sum: the same order of additions as one loop over both.)
-    const double f = V != 0.0 ? upperForm<6>(S_q_, wq, upperForm<5>(S_d_, wd, 0.0))
-                              : upperForm<5>(S_q_, wq, upperForm<4>(S_d_, wd, 0.0));
+    const ProductD& Sd = settings_.sensor_offsets ? P_d_ : S_d_;
+    const ProductQ& Sq = settings_.sensor_offsets ? P_q_ : S_q_;
+    const double f = V != 0.0 ? upperForm<6>(Sq, wq, upperForm<5>(Sd, wd, 0.0))
+                              : upperForm<5>(Sq, wq, upperForm<4>(Sd, wd, 0.0));
     return std::max(0.0, 2.0 * f / stored_weight_);
   }
   /// f + sum_i w_i (S_ii w_i / 2 + sum_{j > i} S_ij w_j) over the first N entries.
@@ -197,6 +216,7 @@ class BlockStatistics {
     double applied_prev_d, applied_prev_q;  // voltage that acted on the period before
     double u_d, u_q;                        // the sample's own (commanded) voltage
     double I_d, I_q, OmIq, OmId, U_d, U_q, Om, Ustep_d, Ustep_q, Inv_d, Inv_q, Wide_d, Wide_q;
+    double cos_theta, sin_theta, I_cos, I_sin;  // sensor offsets: cos, sin of the angle and their integrals
     double shape_d, shape_q;                // inverter error shape s at the sample
     double theta_e;                         // electrical angle (NaN when not logged)
     std::array<double, 3> phase;            // phase currents a, b, c (when theta_e is known)
@@ -204,6 +224,7 @@ class BlockStatistics {
   void inverterShapeIntegral(const Cumulative& previous, const Cumulative& current, const Sample& s, double dt,
                              double width, double& int_d, double& int_q) const;
   void rescale();
+  void updateOffsetProjection();
 
   WindowSettings settings_;
   int block_samples_ = 0;
@@ -216,6 +237,17 @@ class BlockStatistics {
   // then one rank-1 update with no pass over the matrices; rescaled before the scale overflows.
   ProductD S_d_ = ProductD::Zero(), dS_d_ = ProductD::Zero();
   ProductQ S_q_ = ProductQ::Zero(), dS_q_ = ProductQ::Zero();
+  // Sensor offsets (settings_.sensor_offsets): the offset entries' own sums and their cross sums
+  // with each axis, and the axis sums projected off them (what every fit then sees).
+  OffsetProduct N_ = OffsetProduct::Zero();
+  OffsetCrossD C_d_ = OffsetCrossD::Zero();
+  OffsetCrossQ C_q_ = OffsetCrossQ::Zero();
+  ProductD P_d_ = ProductD::Zero();
+  ProductQ P_q_ = ProductQ::Zero();
+  OffsetProduct long_N_ = OffsetProduct::Zero();
+  OffsetCrossD long_C_d_ = OffsetCrossD::Zero();
+  OffsetCrossQ long_C_q_ = OffsetCrossQ::Zero();
+  OffsetBlock long_last_n_ = OffsetBlock::Zero();
   double stored_weight_ = 0.0, stored_difference_weight_ = 0.0;
   double scale_ = 1.0;   // 1 / product of forgetting factors
   double weight_ = 0.0, difference_weight_ = 0.0;

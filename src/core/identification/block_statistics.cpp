@@ -2,6 +2,7 @@
 
 #include "pmsm_param_id/model/frames.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <array>
 #include <cmath>
 #include <stdexcept>
@@ -29,11 +30,22 @@ void BlockStatistics::reset() {
   long_weight_ = 0.0;
   have_long_block_ = false;
   blocks_in_stretch_ = 0;
+  N_.setZero();
+  C_d_.setZero();
+  C_q_.setZero();
+  P_d_.setZero();
+  P_q_.setZero();
+  long_N_.setZero();
+  long_C_d_.setZero();
+  long_C_q_.setZero();
 }
 
 void BlockStatistics::resetLongWindow() {
   long_d_.setZero();
   long_q_.setZero();
+  long_N_.setZero();
+  long_C_d_.setZero();
+  long_C_q_.setZero();
   long_weight_ = 0.0;
   have_long_block_ = false;
 }
@@ -138,6 +150,10 @@ bool BlockStatistics::add(const Sample& s) {
   c.u_d = s.u_d;
   c.u_q = s.u_q;
   c.theta_e = s.theta_e;
+  if (settings_.sensor_offsets && std::isfinite(s.theta_e)) {
+    c.cos_theta = std::cos(s.theta_e);
+    c.sin_theta = std::sin(s.theta_e);
+  }
   inverterShape(s, c.shape_d, c.shape_q, &c.phase);  // the phase currents too, when the angle is known
   const std::size_t cap = ring_.size();
   if (count_ > 0) {
@@ -157,20 +173,9 @@ bool BlockStatistics::add(const Sample& s) {
     const double h = 0.5 * dt;
     c.I_d = p.I_d + h * (p.i_d + s.i_d);
     c.I_q = p.I_q + h * (p.i_q + s.i_q);
-    if (std::isfinite(p.theta_e) && std::isfinite(s.theta_e)) {
-      // With the logged angle, omega_e dt is the angle's increment (unwrapped about the logged
-      // speed's trapezoid): exact whatever filters the logged speed went through.
-      const double predicted = h * (p.omega_e + s.omega_e);
-      const double dtheta = predicted + std::remainder(s.theta_e - p.theta_e - predicted, 2.0 * M_PI);
-      const double g = 0.5 * dtheta;
-      c.OmIq = p.OmIq + g * (p.i_q + s.i_q);
-      c.OmId = p.OmId + g * (p.i_d + s.i_d);
-      c.Om = p.Om + dtheta;
-    } else {
-      c.OmIq = p.OmIq + h * (p.omega_e * p.i_q + s.omega_e * s.i_q);
-      c.OmId = p.OmId + h * (p.omega_e * p.i_d + s.omega_e * s.i_d);
-      c.Om = p.Om + h * (p.omega_e + s.omega_e);
-    }
+    c.OmIq = p.OmIq + h * (p.omega_e * p.i_q + s.omega_e * s.i_q);
+    c.OmId = p.OmId + h * (p.omega_e * p.i_d + s.omega_e * s.i_d);
+    c.Om = p.Om + h * (p.omega_e + s.omega_e);
     if (settings_.stationary_hold) {
       // The vector held in the stator frame turns by -omega_e t in the rotor frame:
       // int_0^dt e^{-j w t} dt = sin(w dt)/w - j (1 - cos(w dt))/w, applied to u_d + j u_q.
@@ -183,6 +188,8 @@ bool BlockStatistics::add(const Sample& s) {
       c.U_d = p.U_d + dt * p.applied_d;  // zero-order hold over [t_j, t_j+1) in the rotor frame
       c.U_q = p.U_q + dt * p.applied_q;
     }
+    c.I_cos = p.I_cos + h * (p.cos_theta + c.cos_theta);
+    c.I_sin = p.I_sin + h * (p.sin_theta + c.sin_theta);
     c.Ustep_d = p.Ustep_d + dt * (p.applied_d - p.applied_prev_d);
     c.Ustep_q = p.Ustep_q + dt * (p.applied_q - p.applied_prev_q);
     double inv_d = 0.0, inv_q = 0.0;
@@ -224,6 +231,13 @@ bool BlockStatistics::add(const Sample& s) {
   rankOneUpper(S_d_, zd, scale_);
   rankOneUpper(S_q_, zq, scale_);
   stored_weight_ += scale_;
+  OffsetBlock zn = OffsetBlock::Zero();
+  if (settings_.sensor_offsets) {
+    zn << c.cos_theta - a.cos_theta, c.sin_theta - a.sin_theta, c.I_cos - a.I_cos, c.I_sin - a.I_sin;
+    N_.noalias() += scale_ * zn * zn.transpose();
+    C_d_.noalias() += scale_ * zd * zn.transpose();
+    C_q_.noalias() += scale_ * zq * zn.transpose();
+  }
   // The noise level needs the mean square of consecutive-block differences, not every one of
   // them: every fourth difference is an unbiased sample and costs a quarter.
   if (have_previous_block_ && (blocks_ & 3u) == 0) {
@@ -240,6 +254,7 @@ bool BlockStatistics::add(const Sample& s) {
   have_previous_block_ = true;
   ++blocks_;
   if (scale_ > 1e150) rescale();
+  if (settings_.sensor_offsets) updateOffsetProjection();
   // Every M-th block of a stretch: consecutive non-overlapping blocks, and the long window keeps
   // their differences. Differencing removes what varies slowly (a drifting R_s or psi_f would
   // otherwise bias a constant-parameter fit over seconds) and keeps the steps.
@@ -250,9 +265,16 @@ bool BlockStatistics::add(const Sample& s) {
       long_d_ = long_lambda_ * long_d_ + dd * dd.transpose();
       long_q_ = long_lambda_ * long_q_ + dq * dq.transpose();
       long_weight_ = long_lambda_ * long_weight_ + 1.0;
+      if (settings_.sensor_offsets) {
+        const OffsetBlock dn = zn - long_last_n_;
+        long_N_ = long_lambda_ * long_N_ + dn * dn.transpose();
+        long_C_d_ = long_lambda_ * long_C_d_ + dd * dn.transpose();
+        long_C_q_ = long_lambda_ * long_C_q_ + dq * dn.transpose();
+      }
     }
     long_last_d_ = zd;
     long_last_q_ = zq;
+    long_last_n_ = zn;
     have_long_block_ = true;
   }
   // Keep the running integrals small: rebase on the oldest entry once per block length (exact).
@@ -262,7 +284,7 @@ bool BlockStatistics::add(const Sample& s) {
       e.I_d -= base.I_d; e.I_q -= base.I_q; e.OmIq -= base.OmIq; e.OmId -= base.OmId;
       e.U_d -= base.U_d; e.U_q -= base.U_q; e.Om -= base.Om; e.Ustep_d -= base.Ustep_d;
       e.Ustep_q -= base.Ustep_q; e.Inv_d -= base.Inv_d; e.Inv_q -= base.Inv_q;
-      e.Wide_d -= base.Wide_d; e.Wide_q -= base.Wide_q;
+      e.Wide_d -= base.Wide_d; e.Wide_q -= base.Wide_q; e.I_cos -= base.I_cos; e.I_sin -= base.I_sin;
     }
   }
   return true;
@@ -276,7 +298,45 @@ void BlockStatistics::rescale() {
   dS_q_ *= k;
   stored_weight_ *= k;
   stored_difference_weight_ *= k;
+  N_ *= k;
+  C_d_ *= k;
+  C_q_ *= k;
   scale_ = 1.0;
+}
+
+namespace {
+// Pseudo-inverse of the offset entries' sums (positive semidefinite; singular at standstill or
+// without the angle), equilibrated by their diagonal.
+OffsetProduct offsetPseudoInverse(const OffsetProduct& N) {
+  OffsetBlock scale;
+  for (int i = 0; i < kOffsetBlockSize; ++i) scale(i) = N(i, i) > 0 ? 1.0 / std::sqrt(N(i, i)) : 0.0;
+  const OffsetProduct scaled = scale.asDiagonal() * N * scale.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<OffsetProduct> eig(scaled);
+  const OffsetBlock values = eig.eigenvalues();
+  const double largest = values.maxCoeff();
+  OffsetBlock inverse = OffsetBlock::Zero();
+  for (int i = 0; i < kOffsetBlockSize; ++i)
+    if (largest > 0 && values(i) > 1e-3 * largest) inverse(i) = 1.0 / values(i);
+  const OffsetProduct pinv = eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
+  return scale.asDiagonal() * pinv * scale.asDiagonal();
+}
+// S - C N^+ C^T: the sums of an axis with its offset terms fitted out (a Schur complement).
+template <class Product, class Cross>
+Product projectOffsets(const Product& S_full, const Cross& C, const OffsetProduct& N_pinv) {
+  Product P = S_full - C * N_pinv * C.transpose();
+  // What the offsets explain almost entirely (a window of a few blocks) leaves rounding noise:
+  // below 1e-10 of the unprojected entries' scale it is zero, not information.
+  for (int j = 0; j < P.cols(); ++j)
+    for (int i = 0; i < P.rows(); ++i)
+      if (std::abs(P(i, j)) <= 1e-10 * std::sqrt(S_full(i, i) * S_full(j, j))) P(i, j) = 0.0;
+  return P;
+}
+}  // namespace
+
+void BlockStatistics::updateOffsetProjection() {
+  const OffsetProduct pinv = offsetPseudoInverse(N_);
+  P_d_ = projectOffsets(ProductD(S_d_.selfadjointView<Eigen::Upper>()), C_d_, pinv);
+  P_q_ = projectOffsets(ProductQ(S_q_.selfadjointView<Eigen::Upper>()), C_q_, pinv);
 }
 
 WindowSums BlockStatistics::window() const {
@@ -294,8 +354,14 @@ WindowSums BlockStatistics::window() const {
 WindowSums BlockStatistics::longWindow() const {
   WindowSums w;
   if (long_weight_ <= 0) return w;
-  w.mean_d = long_d_ / long_weight_;
-  w.mean_q = long_q_ / long_weight_;
+  if (settings_.sensor_offsets) {
+    const OffsetProduct pinv = offsetPseudoInverse(long_N_);
+    w.mean_d = projectOffsets(long_d_, long_C_d_, pinv) / long_weight_;
+    w.mean_q = projectOffsets(long_q_, long_C_q_, pinv) / long_weight_;
+  } else {
+    w.mean_d = long_d_ / long_weight_;
+    w.mean_q = long_q_ / long_weight_;
+  }
   w.weight = long_weight_;
   w.block_duration = blockDuration();
   return w;
@@ -303,10 +369,12 @@ WindowSums BlockStatistics::longWindow() const {
 
 ProductD BlockStatistics::meanProductD() const {
   if (stored_weight_ <= 0) return ProductD::Zero();
+  if (settings_.sensor_offsets) return P_d_ / stored_weight_;
   return ProductD(S_d_.selfadjointView<Eigen::Upper>()) / stored_weight_;
 }
 ProductQ BlockStatistics::meanProductQ() const {
   if (stored_weight_ <= 0) return ProductQ::Zero();
+  if (settings_.sensor_offsets) return P_q_ / stored_weight_;
   return ProductQ(S_q_.selfadjointView<Eigen::Upper>()) / stored_weight_;
 }
 ProductD BlockStatistics::meanDifferenceProductD() const {
@@ -352,17 +420,19 @@ double BlockStatistics::fitnessWithCrossSaturation(const ParameterVector& p) con
   wq[kIntegralInverterQ] = V * inv_Lq;
   wq[kDeltaIdInQ] = Ldq * inv_Lq;
   wq[kIntegralOmegaIqInQ] = Ldq * inv_Lq;
+  const ProductD& Sd = settings_.sensor_offsets ? P_d_ : S_d_;
+  const ProductQ& Sq = settings_.sensor_offsets ? P_q_ : S_q_;
   double f = 0.0;
   for (int i = 0; i < kBlockSizeD; ++i) {
     if (wd[static_cast<std::size_t>(i)] == 0.0) continue;
-    double row = 0.5 * S_d_(i, i) * wd[static_cast<std::size_t>(i)];
-    for (int j = i + 1; j < kBlockSizeD; ++j) row += S_d_(i, j) * wd[static_cast<std::size_t>(j)];
+    double row = 0.5 * Sd(i, i) * wd[static_cast<std::size_t>(i)];
+    for (int j = i + 1; j < kBlockSizeD; ++j) row += Sd(i, j) * wd[static_cast<std::size_t>(j)];
     f += wd[static_cast<std::size_t>(i)] * row;
   }
   for (int i = 0; i < kBlockSizeQ; ++i) {
     if (wq[static_cast<std::size_t>(i)] == 0.0) continue;
-    double row = 0.5 * S_q_(i, i) * wq[static_cast<std::size_t>(i)];
-    for (int j = i + 1; j < kBlockSizeQ; ++j) row += S_q_(i, j) * wq[static_cast<std::size_t>(j)];
+    double row = 0.5 * Sq(i, i) * wq[static_cast<std::size_t>(i)];
+    for (int j = i + 1; j < kBlockSizeQ; ++j) row += Sq(i, j) * wq[static_cast<std::size_t>(j)];
     f += wq[static_cast<std::size_t>(i)] * row;
   }
   return std::max(0.0, 2.0 * f / stored_weight_);

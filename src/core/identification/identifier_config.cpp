@@ -135,6 +135,7 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   c.window.inverter_zero_crossing_current = y.nonNegative("inverter.zero_crossing_current", 0.0, " [A] (0 = sign)");
   c.inverter.max_relative_uncertainty =
       y.positive("inverter.max_relative_uncertainty", c.inverter.max_relative_uncertainty);
+  c.window.sensor_offsets = y.oneOf("current_sensors.offsets", "none", {"none", "estimate"}) == "estimate";
   bool thermal_reference_missing = false;
   if (y.has("thermal")) {
     ThermalSettings& t = c.thermal;
