@@ -133,7 +133,11 @@ TEST(Assessment, MechanicalSpeedOnANonSalientMotorIsCaughtByTheLongWindow) {
 // are identified through the speed terms alone, and their reason says so.
 TEST(Assessment, SteadyStateWithoutStepsSaysTheSpeedUnitIsUnverified) {
   const auto samples = samplesOf(drive("industrial_no_injection.yaml", 1, 0.8));
-  const std::vector<Sample> steady(samples.begin() + 4000, samples.end());
+  std::vector<Sample> steady(samples.begin() + 4000, samples.end());
+  // With the logged angle the speed is checked against the angle's rate directly.
+  const Estimate with_angle = identify(steady, "rls");
+  EXPECT_TRUE(with_angle.fit.speed_unit_verified);
+  for (Sample& s : steady) s.theta_e = std::numeric_limits<double>::quiet_NaN();
   const Estimate e = identify(steady, "rls");
   EXPECT_FALSE(e.fit.speed_unit_verified);
   EXPECT_TRUE(e.identifiable[kLq]) << e.reason[kLq];

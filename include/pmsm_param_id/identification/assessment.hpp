@@ -51,10 +51,11 @@ struct FitCheck {
   double speed_scale_long = NAN;   ///< the same over the long check window [-] (1 when the units are right)
   std::string likely_cause;        ///< one line when the fit is poor and a cause fits the data
   double sampling_floor = 0.0;     ///< (omega_e T_s)^2: relative error of sampled integrals at speed [-]
-  ParameterVector model_sensitivity{};  ///< change with twice the inverter zero-crossing width [-]
-  double inverter_model_sensitivity = 0.0;  ///< the same for V [-]
   bool inverter_modelled = false;  ///< the fit estimated an inverter voltage error V with the four
   double inverter_voltage = 0.0;   ///< V [V] (pole-voltage error amplitude, V_dc t_dead f_sw + drop)
+  /// The zero-crossing shape: the part of V whose error builds up over twice the configured current
+  /// (the rest over the configured current) [V]; see LinearBlockModel::inverter().
+  double inverter_wide_share = 0.0;
   double inverter_relative_std = std::numeric_limits<double>::infinity();  ///< of V [-]
   bool cross_saturation_modelled = false;  ///< the fit estimated L_qq and L_dq (magnetics.cross_saturation)
   double L_qq = NAN, L_dq = NAN;           ///< incremental q and cross-saturation inductances [H]
@@ -62,7 +63,7 @@ struct FitCheck {
 };
 
 /// Exact fit of the window starting from `start` (positive inductances), and its check.
-/// estimate_inverter: fit V with the four parameters (start value inverter_start).
+/// estimate_inverter: fit V and its zero-crossing shape with the four (start value inverter_start).
 /// estimate_cross_saturation: fit L_qq and L_dq with the four (section 11); excludes estimate_inverter.
 FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& settings, const ParameterVector& start,
                   bool diagnose, bool estimate_inverter = false, double inverter_start = 0.0,

@@ -11,7 +11,8 @@
 //   speed scale: the inductances and the flux in the speed terms are free (a speed logged in rpm
 //                or mechanical rad/s, or time in ms, shows as their ratio to the Di terms);
 //   delay:       a multiple a of int(u_k - u_k-1) (a = 1: the voltage acts one sample late);
-//   inverter:    a voltage V along the current vector (dead time, device drops);
+//   inverter:    a voltage V along the current vector (dead time, device drops), and with the
+//                zero-crossing shape as a mix of two widths;
 //   cross saturation: the incremental L_qq and the cross inductance L_dq of a saturating machine.
 #pragma once
 #include <Eigen/Core>
@@ -36,7 +37,9 @@ struct LinearBlockModel {
   static const LinearBlockModel& speedScale();   ///< + {L_q in speed terms, L_d in speed terms}; psi_f in speed terms
   static const LinearBlockModel& delay();        ///< + {a}: voltage delay [samples]
   static const LinearBlockModel& inverter();     ///< + {V}: inverter voltage along the current [V]
-  static const LinearBlockModel& inverterWide(); ///< the same with twice the zero-crossing width
+  /// + {V, V_wide}: the inverter voltage with its zero-crossing shape, a mix of the shape over the
+  /// configured current (share V - V_wide) and over twice it (share V_wide).
+  static const LinearBlockModel& inverterWithShape();
   /// + {L_qq, L_dq}: a saturating machine about the q current i_bar (WindowSums::
   /// crossLinearisationCurrent()); L_q is then the secant inductance psi_q(0, i_bar) / i_bar, psi_f
   /// the flux psi_d(0, i_bar), L_qq the incremental q inductance, L_dq the cross-saturation (section 11).

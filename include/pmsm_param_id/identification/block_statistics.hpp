@@ -156,6 +156,12 @@ class BlockStatistics {
     // (The q form continues the d form's sum: the same order of additions as one loop over both.)
     const ProductD& Sd = settings_.sensor_offsets ? P_d_ : S_d_;
     const ProductQ& Sq = settings_.sensor_offsets ? P_q_ : S_q_;
+    if (inverter_wide_share_ != 0.0) {  // the zero-crossing shape as a mix of two widths
+      const double Vw = inverter_wide_share_;
+      const double wd7[7] = {wd[0], wd[1], wd[2], wd[3], (V - Vw) * inv_Ld, 0.0, Vw * inv_Ld};
+      const double wq8[8] = {wq[0], wq[1], wq[2], wq[3], wq[4], (V - Vw) * inv_Lq, 0.0, Vw * inv_Lq};
+      return std::max(0.0, 2.0 * upperForm<8>(Sq, wq8, upperForm<7>(Sd, wd7, 0.0)) / stored_weight_);
+    }
     const double f = V != 0.0 ? upperForm<6>(Sq, wq, upperForm<5>(Sd, wd, 0.0))
                               : upperForm<5>(Sq, wq, upperForm<4>(Sd, wd, 0.0));
     return std::max(0.0, 2.0 * f / stored_weight_);
@@ -175,9 +181,20 @@ class BlockStatistics {
   /// inductance (it enters through omega_e psi_q only), p[kPsiF] the flux psi_d(0, i_q).
   double fitnessWithCrossSaturation(const ParameterVector& p) const;
 
-  /// The inverter voltage the fitness subtracts (0: none) [V]; set from the data's exact fit.
-  void setInverterVoltage(double v) { inverter_voltage_ = v; }
+  /// The inverter voltage the fitness subtracts (0: none) [V], and the part of it that builds up
+  /// over twice the zero-crossing current [V]; set from the data's exact fit.
+  void setInverterVoltage(double v, double wide_share = 0.0) {
+    inverter_voltage_ = v;
+    inverter_wide_share_ = v != 0.0 ? wide_share : 0.0;
+  }
   double inverterVoltage() const { return inverter_voltage_; }
+  double inverterWideShare() const { return inverter_wide_share_; }
+  /// Inductances for the stationary hold's bending of the currents within a period [H] (0: none);
+  /// set from the data's exact fit (the correction is a fraction of a per cent of the integrals).
+  void setHoldInductances(double L_d, double L_q) {
+    hold_L_d_ = L_d;
+    hold_L_q_ = L_q;
+  }
   /// Known cross-saturation inductance L_dq and incremental q inductance L_qq [H] (0: linear model);
   /// set from the data's exact fit when magnetics.cross_saturation is on.
   void setCrossSaturation(double L_dq, double L_qq) { cross_L_dq_ = L_dq; cross_L_qq_ = L_qq; }
@@ -205,6 +222,10 @@ class BlockStatistics {
   WindowSums window() const;
   /// The long check window: differences of consecutive non-overlapping blocks, long_time_constant.
   WindowSums longWindow() const;
+  /// The logged speed against the logged angle's rate over the long window, sum |omega_e| dt /
+  /// sum sign(omega_e) dtheta_e (1 when the speed's unit is right); NaN without the angle or before
+  /// two electrical turns.
+  double loggedSpeedToAngleRatio() const;
   const BlockD& lastBlockD() const { return last_d_; }
   const BlockQ& lastBlockQ() const { return last_q_; }
   const WindowSettings& settings() const { return settings_; }
@@ -248,11 +269,14 @@ class BlockStatistics {
   OffsetCrossD long_C_d_ = OffsetCrossD::Zero();
   OffsetCrossQ long_C_q_ = OffsetCrossQ::Zero();
   OffsetBlock long_last_n_ = OffsetBlock::Zero();
+  // The logged speed against the logged angle (long window; the pending sums since the last long block).
+  double speed_travel_ = 0.0, angle_travel_ = 0.0, pending_speed_travel_ = 0.0, pending_angle_travel_ = 0.0;
   double stored_weight_ = 0.0, stored_difference_weight_ = 0.0;
   double scale_ = 1.0;   // 1 / product of forgetting factors
   double weight_ = 0.0, difference_weight_ = 0.0;
   std::uint64_t blocks_ = 0;
-  double inverter_voltage_ = 0.0;
+  double inverter_voltage_ = 0.0, inverter_wide_share_ = 0.0;
+  double hold_L_d_ = 0.0, hold_L_q_ = 0.0;
   double cross_L_dq_ = 0.0, cross_L_qq_ = 0.0;
   bool have_previous_block_ = false;
   ProductD long_d_ = ProductD::Zero();

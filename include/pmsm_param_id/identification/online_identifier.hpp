@@ -128,7 +128,7 @@ class OnlineIdentifier {
   SampleStatus admit(const Sample& s, bool check_step, SampleStatus status);
   SampleStatus processTimed(const Sample& s, SampleStatus status);
   bool tryStart();
-  void useInverterVoltage(const FitCheck& fit);
+  void adoptExactFitTerms(const FitCheck& fit);
   void setBox(const ParameterVector& centre);
 
   IdentifierCounters counters_;

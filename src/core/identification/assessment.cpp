@@ -76,7 +76,8 @@ SpeedScale measureSpeedScale(const WindowSums& window, const AssessmentSettings&
 // 6 % for the long window, above the 3.3 % spread of its ratio measured on correct data (30 seeds of
 // each shipped motor); a unit error is a factor of 2 or more (rpm with 9-11 pole pairs aside).
 // c is a scale factor: tested in log space, |ln c| against the relative std of c.
-std::string unitCause(const SpeedScale& m, double min_log_ratio) {
+std::string unitCause(const SpeedScale& m, double min_log_ratio,
+                      const char* measure = "the speed terms fit %.3g times the current-step terms") {
   const double c = m.c;
   const bool significant = m.fit.ok && std::isfinite(c) && c > 0 && std::abs(std::log(c)) > min_log_ratio &&
                            std::abs(std::log(c)) > kSignificance * m.c_std / c;
@@ -93,26 +94,26 @@ std::string unitCause(const SpeedScale& m, double min_log_ratio) {
   }
   const double rpm_pole_pairs = c / (2.0 * M_PI / 60.0);
   if (c > 1.5 && std::abs(c - std::round(c)) < 0.1 * c)
-    return format("omega_e looks like mechanical speed: the speed terms fit %.3g times the current-step terms "
-                  "(pole pairs about %.0f?); log omega_e = pole pairs x mechanical speed [rad/s]", c, std::round(c));
+    return format(measure, c) + format(": omega_e looks like mechanical speed (pole pairs about %.0f?); log "
+                                       "omega_e = pole pairs x mechanical speed [rad/s]", std::round(c));
   if (rpm_pole_pairs >= 0.9 && std::abs(rpm_pole_pairs - std::round(rpm_pole_pairs)) < 0.05 * rpm_pole_pairs)
-    return format("omega_e looks like rpm: the speed terms fit %.3g times the current-step terms (= 2 pi / 60 x "
-                  "%.0f pole pairs); log the electrical speed in rad/s", c, std::round(rpm_pole_pairs));
-  if (c > 1.0 / 3000 && c < 1.0 / 300)
-    return format("time looks like ms, not s: the speed terms fit %.3g times the current-step terms", c);
-  if (c > 1.0 / 3e6 && c < 1.0 / 3e5)
-    return format("time looks like us, not s: the speed terms fit %.3g times the current-step terms", c);
-  return format("the speed terms fit %.3g times the current-step terms: check the unit of omega_e "
-                "(electrical rad/s) and of time (s)", c);
+    return format(measure, c) + format(" (= 2 pi / 60 x %.0f pole pairs): omega_e looks like rpm; log the "
+                                       "electrical speed in rad/s", std::round(rpm_pole_pairs));
+  if (c > 1.0 / 3000 && c < 1.0 / 300) return format(measure, c) + ": time looks like ms, not s";
+  if (c > 1.0 / 3e6 && c < 1.0 / 3e5) return format(measure, c) + ": time looks like us, not s";
+  return format(measure, c) + ": check the unit of omega_e (electrical rad/s) and of time (s)";
 }
 
-// The window with the reference voltages corrected by a known inverter voltage: U <- U - V int(s).
-WindowSums compensated(WindowSums w, double V) {
+// The window with the reference voltages corrected by a known inverter voltage V, of which
+// V_wide builds up over twice the zero-crossing current: U <- U - (V - V_wide) int(s) - V_wide int(s_wide).
+WindowSums compensated(WindowSums w, double V, double V_wide) {
   if (V == 0.0) return w;
   ProductD Ad = ProductD::Identity();
-  Ad(kIntegralUd, kIntegralInverterD) = -V;
+  Ad(kIntegralUd, kIntegralInverterD) = -(V - V_wide);
+  Ad(kIntegralUd, kIntegralInverterWideD) = -V_wide;
   ProductQ Aq = ProductQ::Identity();
-  Aq(kIntegralUq, kIntegralInverterQ) = -V;
+  Aq(kIntegralUq, kIntegralInverterQ) = -(V - V_wide);
+  Aq(kIntegralUq, kIntegralInverterWideQ) = -V_wide;
   w.mean_d = Ad * w.mean_d * Ad.transpose();
   w.mean_q = Aq * w.mean_q * Aq.transpose();
   w.mean_difference_d = Ad * w.mean_difference_d * Ad.transpose();
@@ -212,9 +213,12 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   out.relative_std.fill(std::numeric_limits<double>::infinity());
   if (!stats.hasBlocks()) return out;
   estimate_cross = estimate_cross && !estimate_inverter;
-  Eigen::VectorXd s(estimate_inverter ? 5 : estimate_cross ? 6 : 4);
+  Eigen::VectorXd s(estimate_inverter || estimate_cross ? 6 : 4);
   for (int p = 0; p < kParameterCount; ++p) s(p) = start[p];
-  if (estimate_inverter) s(4) = inverter_start;
+  if (estimate_inverter) {
+    s(4) = inverter_start;
+    s(5) = 0.0;  // the shape: linear in it, any start converges
+  }
   if (estimate_cross) {  // from the last fit when there is one, else the linear machine
     s(4) = stats.crossSaturationSet() ? stats.crossLqq() : start[kLq];
     s(5) = stats.crossSaturationSet() ? stats.crossLdq() : 0.0;
@@ -226,9 +230,10 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
                             (window.block_duration * window.block_duration);
   const double floor2 = a.fit_floor_relative * a.fit_floor_relative * current_ms;
   window.min_noise_variance = floor2;
-  const LinearBlockModel model = estimate_inverter ? LinearBlockModel::inverter()
+  const LinearBlockModel model = estimate_inverter ? LinearBlockModel::inverterWithShape()
                                  : estimate_cross  ? LinearBlockModel::crossSaturation(window.crossLinearisationCurrent())
                                                    : LinearBlockModel::paper();
+  s.conservativeResize(model.size());
   const BlockFit f = BlockLeastSquares::fit(window, model, s, {}, a.variance_inflation);
   if (!f.ok) return out;
   out.available = true;
@@ -242,16 +247,8 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   if (estimate_inverter) {
     out.inverter_modelled = true;
     out.inverter_voltage = f.beta(4);
+    out.inverter_wide_share = f.beta.size() > 5 ? f.beta(5) : 0.0;
     out.inverter_relative_std = f.standard_deviation(4) / std::abs(f.beta(4));
-    // Model sensitivity: the same fit with twice the zero-crossing width. The difference is part
-    // of the stated uncertainty (the true shape of the crossing is not known).
-    const BlockFit wide = BlockLeastSquares::fit(window, LinearBlockModel::inverterWide(), f.beta, {}, a.variance_inflation);
-    if (wide.ok)
-      for (int p = 0; p < 5; ++p) {
-        const double d = std::abs(wide.beta(p) - f.beta(p)) / std::abs(f.beta(p));
-        if (p < kParameterCount) out.model_sensitivity[p] = std::isfinite(d) ? d : 0.0;
-        else out.inverter_model_sensitivity = std::isfinite(d) ? d : 0.0;
-      }
   }
   for (int p = 0; p < kParameterCount; ++p) {
     out.optimum[p] = f.beta(p);
@@ -282,12 +279,13 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
                    fitsAtNoise(f.mean_square_q, f.noise_variance_q, floor2, a.max_fit_ratio);
   if (diagnose_misfit) {
     const double V = out.inverter_modelled ? out.inverter_voltage : 0.0;
-    const WindowSums corrected = compensated(window, V);
+    const double V_wide = out.inverter_modelled ? out.inverter_wide_share : 0.0;
+    const WindowSums corrected = compensated(window, V, V_wide);
     const SpeedScale short_scale = measureSpeedScale(corrected, a, out);
     std::string cause = misspecification(corrected, a, out, short_scale);
     // The unit of the speed shows only where the window holds q-axis current steps; the fitness
     // window may have forgotten them (a start-up, a load step), the long window has not.
-    WindowSums long_window = compensated(stats.longWindow(), V);
+    WindowSums long_window = compensated(stats.longWindow(), V, V_wide);
     out.speed_unit_verified = short_scale.verified();
     out.speed_scale_short = short_scale.scale();
     // With a saturating machine modelled the long window's differenced blocks gave spurious unit
@@ -301,6 +299,18 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
       // A unit error explains the misfit of every other alternative too: it names the cause first.
       const std::string unit = unitCause(long_scale, 0.06);
       if (!unit.empty()) cause = unit + " (over the long check window)";
+    }
+    // With the logged angle the block integrals take omega_e dt from it, so a wrong speed unit no
+    // longer shows in the fit; the logged speed is compared with the angle's rate directly.
+    const double direct = stats.loggedSpeedToAngleRatio();
+    if (std::isfinite(direct)) {
+      SpeedScale m;
+      m.fit.ok = true;
+      m.c = 1.0 / direct;  // as the speed-term scale: a speed logged k times too large fits 1/k
+      m.c_std = 0.0;
+      const std::string unit = unitCause(m, 0.06, "the logged angle turns %.3g times as fast as the logged speed says");
+      if (!unit.empty()) cause = unit;
+      else out.speed_unit_verified = true;
     }
     if (!cause.empty()) {
       out.consistent = false;
@@ -317,7 +327,7 @@ InverterAssessment assessInverter(const FitCheck& fit, const AssessmentSettings&
     return out;
   }
   const double V = fit.inverter_voltage;
-  out.relative_uncertainty = a.confidence_sigmas * fit.inverter_relative_std + fit.inverter_model_sensitivity;
+  out.relative_uncertainty = a.confidence_sigmas * fit.inverter_relative_std;
   if (!std::isfinite(V) || V < 0) {
     out.status = ParameterStatus::Implausible;
     out.reason = format("%.3g V: an inverter error voltage is positive", V);
@@ -363,7 +373,7 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
     const double statistical = a.confidence_sigmas * fit.relative_std[p];
     const double distance = std::abs(v - fit.optimum[p]) / std::abs(v);
     out.relative_uncertainty[p] =
-        std::max(statistical + distance, a.min_relative_uncertainty) + fit.sampling_floor + fit.model_sensitivity[p];
+        std::max(statistical + distance, a.min_relative_uncertainty) + fit.sampling_floor;
     if (!fit.consistent) {
       st = ParameterStatus::PoorFit;
       why = format("the model does not fit the data: block residual %.3g (d) / %.3g (q) times what the noise explains",
@@ -382,13 +392,7 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
                                        : "the data do not determine it (no excitation in the window)";
       continue;
     }
-    if (!(a.min_relative_uncertainty + fit.sampling_floor + fit.model_sensitivity[p] <= limit)) {
-      if (fit.model_sensitivity[p] > fit.sampling_floor) {
-        st = ParameterStatus::NotExcited;
-        why = format("depends on the inverter's zero-crossing shape by +-%.3g %% (need %.3g %%)",
-                     100 * fit.model_sensitivity[p], 100 * limit);
-        continue;
-      }
+    if (!(a.min_relative_uncertainty + fit.sampling_floor <= limit)) {
       st = ParameterStatus::NotExcited;
       why = format("sampled too coarsely for the speed: the currents bend between samples by +-%.3g %% "
                    "(need %.3g %%)", 100 * fit.sampling_floor, 100 * limit);
@@ -401,7 +405,6 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
           format("stated +-%.3g %% = statistical +-%.3g %%", 100 * out.relative_uncertainty[p], 100 * statistical) +
           format(" + distance to the data's optimum %.3g %%", 100 * distance) +
           (fit.sampling_floor > 0 ? format(" + sampling +-%.3g %%", 100 * fit.sampling_floor) : std::string()) +
-          (fit.model_sensitivity[p] > 0 ? format(" + inverter shape +-%.3g %%", 100 * fit.model_sensitivity[p]) : std::string()) +
           format(" (need %.3g %%)", 100 * limit);
       const bool method_is_off = distance > std::max(statistical, a.min_relative_uncertainty);
       st = method_is_off ? ParameterStatus::NotConverged : ParameterStatus::NotExcited;

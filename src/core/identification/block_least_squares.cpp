@@ -145,14 +145,16 @@ LinearBlockModel LinearBlockModel::crossSaturationSpeedScale(double i_bar) {
   return m;
 }
 
-const LinearBlockModel& LinearBlockModel::inverterWide() {
+const LinearBlockModel& LinearBlockModel::inverterWithShape() {
+  // V (s - s_wide) + V_wide s_wide = V s + V_wide (s_wide - s): V the amplitude whatever the shape.
   static const LinearBlockModel model = [] {
     LinearBlockModel m = inverter();
-    m.name = "inverter_wide";
-    m.G_d(kIntegralInverterD, 4) = 0.0;
-    m.G_q(kIntegralInverterQ, 4) = 0.0;
-    m.G_d(kIntegralInverterWideD, 4) = 1.0;
-    m.G_q(kIntegralInverterWideQ, 4) = 1.0;
+    m.name = "inverter_with_shape";
+    const int wide = addParameter(m, "inverter_voltage_wide_share");
+    m.G_d(kIntegralInverterWideD, wide) = 1.0;
+    m.G_d(kIntegralInverterD, wide) = -1.0;
+    m.G_q(kIntegralInverterWideQ, wide) = 1.0;
+    m.G_q(kIntegralInverterQ, wide) = -1.0;
     return m;
   }();
   return model;

@@ -210,22 +210,29 @@ bool OnlineIdentifier::tryStart() {
     if (!usable(kLd)) centre[kLd] = centre[kLq];
     if (!usable(kLq)) centre[kLq] = centre[kLd];
     noise_std_ = std::max(fit.noise_std_d, fit.noise_std_q);
-    useInverterVoltage(fit);
+    adoptExactFitTerms(fit);
     setBox(centre);
   }
   restart();
   return true;
 }
 
-void OnlineIdentifier::useInverterVoltage(const FitCheck& fit) {
-  // The same for a saturating machine's L_qq and L_dq (the swarm's fitness takes them as known).
+void OnlineIdentifier::adoptExactFitTerms(const FitCheck& fit) {
+  // A saturating machine's L_qq and L_dq (the swarm's fitness takes them as known).
   if (fit.cross_saturation_modelled && std::isfinite(fit.L_qq) && fit.L_qq > 0 && std::isfinite(fit.L_dq))
     stats_.setCrossSaturation(fit.L_dq, fit.L_qq);
+  // The stationary hold's bending of the currents needs the inductances: the data's, once determined.
+  const auto known = [&](int p) {
+    return fit.available && fit.determined[p] && fit.relative_std[p] < 0.1 && plausible(p, fit.optimum[p]);
+  };
+  if (config_.window.stationary_hold && known(kLd) && known(kLq))
+    stats_.setHoldInductances(fit.optimum[kLd], fit.optimum[kLq]);
   // The swarm's fitness (and RLS, EKF) take the data's estimate of the inverter voltage as known:
   // the paper's swarm searches four dimensions; V is profiled out by the exact fit.
   if (!fit.inverter_modelled) return;
   const double V = fit.inverter_voltage;
-  stats_.setInverterVoltage(std::isfinite(V) && V > 0 && fit.inverter_relative_std < 0.3 ? V : 0.0);
+  const bool usable = std::isfinite(V) && V > 0 && fit.inverter_relative_std < 0.3 && std::isfinite(fit.inverter_wide_share);
+  stats_.setInverterVoltage(usable ? V : 0.0, usable ? fit.inverter_wide_share : 0.0);
 }
 
 bool OnlineIdentifier::refreshSearchBox() {
@@ -234,7 +241,7 @@ bool OnlineIdentifier::refreshSearchBox() {
                                 stats_.inverterVoltage(), config_.magnetics.cross_saturation);
   if (!fit.available) return false;
   noise_std_ = std::max(fit.noise_std_d, fit.noise_std_q);
-  useInverterVoltage(fit);
+  adoptExactFitTerms(fit);
   // A sudden change of the motor (a step of R_s, L_d, L_q or psi_f: a fault, a demagnetisation)
   // would read, in the long check window of differenced blocks, as a unit error for its whole
   // memory. When the model fits the window again and a well-determined optimum has moved by more

@@ -25,7 +25,11 @@ void RlsIdentifier::update(const Sample& s, bool new_block, bool) {
   const BlockQ& q = stats_.lastBlockQ();  // {Di_q, I_q, W_q, U_q, Om}
   Vec5 phi_d = (Vec5() << d(kIntegralId), d(kDeltaId), -d(kIntegralOmegaIq), 0.0, d(kIntegralInverterD)).finished();
   Vec5 phi_q = (Vec5() << q(kIntegralIq), q(kIntegralOmegaId), q(kDeltaIq), q(kIntegralOmega), q(kIntegralInverterQ)).finished();
-  double y_d = d(kIntegralUd), y_q = q(kIntegralUq);
+  // The inverter voltage's zero-crossing shape from the data's exact fit (V itself is RLS's fifth
+  // parameter): the part that builds up over twice the zero-crossing current moves to the measured side.
+  const double V_wide = stats_.inverterWideShare();
+  double y_d = d(kIntegralUd) - V_wide * (d(kIntegralInverterWideD) - d(kIntegralInverterD));
+  double y_q = q(kIntegralUq) - V_wide * (q(kIntegralInverterWideQ) - q(kIntegralInverterQ));
   if (stats_.crossSaturationSet()) {
     // A saturating machine (section 11): the swarms' model, with L_qq and L_dq from the data's exact
     // fit taken as known and moved to the measured side; L_q and psi_f the secant and the flux at i_bar.
