@@ -569,6 +569,31 @@ TEST(RealDriveIdentification, StationaryHoldUndeclaredIsAPoorFitDeclaredIsRight)
   }
 }
 
+// A voltage held in the stator frame ramps in the rotor frame within each period, so the currents
+// bend between samples: R_s times the i_d the trapezoid missed read as L_q 0.7-1.2 % high (at a
+// stated +-0.5 %) on the robot joint at light load, 300 rpm, 20 kHz. Corrected, every identified
+// value is within its stated uncertainty.
+TEST(RealDriveIdentification, TheStationaryHoldsBendingOfTheCurrentsIsCorrected) {
+  Scenario s = test_helpers::scenario("robot_joint.yaml");
+  s.load_torque = Profile::constant(0.3);  // i_q about 2.4 A: the q signal small against the bending
+  s.inverter.stationary_hold = true;
+  s.duration = 0.3;
+  IdentifierConfig c;
+  c.window.stationary_hold = true;
+  for (std::uint64_t seed : {1u, 2u}) {
+    s.seed = seed;
+    const auto data = test_helpers::run(s);
+    for (const char* method : {"wls", "fbdapso"}) {
+      const Estimate e = identify(samplesOf(data), method, c);
+      EXPECT_TRUE(e.identifiable[kLq]) << method << " " << e.reason[kLq];
+      for (int p = 0; p < kParameterCount; ++p)
+        if (e.identifiable[p])
+          EXPECT_LE(std::abs(errorPercent(e.parameters[p], data.back().truth[p])), 100 * e.relative_uncertainty[p])
+              << method << " seed " << seed << " " << parameterNames()[p];
+    }
+  }
+}
+
 // On the full realistic drives (sensor offsets, gain mismatch, encoder, smooth zero crossings)
 // nothing is reported identified more than 2 % from the truth, by any method, with or without the
 // real-drive declarations.
