@@ -144,6 +144,22 @@ TEST(Assessment, SteadyStateWithoutStepsSaysTheSpeedUnitIsUnverified) {
   EXPECT_NE(e.reason[kLq].find("speed terms only"), std::string::npos) << e.reason[kLq];
 }
 
+// A speed in rpm on a 10-pole-pair motor is only 4.7 % from the electrical rad/s: the speed terms
+// cannot tell it from the current steps, the logged angle can.
+TEST(Assessment, RpmOnATenPolePairMotorIsCaughtThroughTheLoggedAngle) {
+  Scenario s = test_helpers::scenario("wc1_drive.yaml");
+  s.motor.pole_pairs = 10;
+  s.duration = 0.5;
+  auto samples = samplesOf(test_helpers::run(s));
+  for (auto& x : samples) x.omega_e *= 60.0 / (2.0 * M_PI) / 10.0;  // mechanical rpm
+  const Estimate e = identify(samples, "rls");
+  for (int p = 0; p < kParameterCount; ++p) EXPECT_EQ(e.status[p], ParameterStatus::PoorFit) << e.reason[p];
+  EXPECT_NE(e.fit.likely_cause.find("10 pole pairs"), std::string::npos) << e.fit.likely_cause;
+  // Without the angle the speed terms cannot see it (doc/results.md).
+  for (auto& x : samples) x.theta_e = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(identify(samples, "rls").fit.likely_cause.find("rpm"), std::string::npos);
+}
+
 TEST(Assessment, MechanicalSpeedIsAPoorFitWithItsCause) {
   auto samples = samplesOf(drive("wc1_drive.yaml"));
   for (auto& s : samples) s.omega_e /= 4.0;

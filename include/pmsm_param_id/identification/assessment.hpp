@@ -54,7 +54,7 @@ struct FitCheck {
   bool inverter_modelled = false;  ///< the fit estimated an inverter voltage error V with the four
   double inverter_voltage = 0.0;   ///< V [V] (pole-voltage error amplitude, V_dc t_dead f_sw + drop)
   /// The zero-crossing shape: the part of V whose error builds up over twice the configured current
-  /// (the rest over the configured current) [V]; see LinearBlockModel::inverter().
+  /// (the rest over the configured current) [V]; see LinearBlockModel::inverterWithShape().
   double inverter_wide_share = 0.0;
   double inverter_relative_std = std::numeric_limits<double>::infinity();  ///< of V [-]
   bool cross_saturation_modelled = false;  ///< the fit estimated L_qq and L_dq (magnetics.cross_saturation)

@@ -40,7 +40,7 @@ struct WindowSettings {
   double long_time_constant = 10.0;        ///< forgetting of the long check window [s] (unit checks)
   bool stationary_hold = false;            ///< the inverter holds the voltage in the stator frame
   double inverter_zero_crossing_current = 0.0;  ///< the inverter error passes zero as tanh(i / this) [A]; 0 = sign
-  bool inverter_width_sensitivity = false;  ///< keep the twice-the-width column (the inverter model is on)
+  bool inverter_wide_shape = false;  ///< keep the twice-the-width shape column (the inverter model is on)
   int voltage_delay_samples = 0;           ///< 0: u(t_k) acts on [t_k, t_k+1); 1: on [t_k+1, t_k+2)
   /// The phase-current sensors' offsets are profiled out of every fit (needs the logged angle): a
   /// constant stator-frame offset o adds o_a (cos theta) + o_b (sin theta) terms to each block
@@ -65,7 +65,7 @@ enum BlockEntryD : int {
   kIntegralUd,           ///< int u_d dt [V s] (the voltage acting: delay and hold applied)
   kIntegralInverterD,    ///< int s_d dt [s]: shape of the inverter voltage error (see below)
   kIntegralUdStep,       ///< int (u_d,k - u_d,k-1) dt [V s] (delay diagnosis)
-  kIntegralInverterWideD,  ///< int s_d dt with twice the zero-crossing width (model sensitivity) [s]
+  kIntegralInverterWideD,  ///< int s_d dt with twice the zero-crossing width (the fitted shape mix) [s]
   kDeltaIqInD,           ///< i_q(t_k) - i_q(t_j) [A] (cross-saturation: L_dq di_q/dt in the d axis)
   kIntegralOmegaIdInD,   ///< int omega_e i_d dt [A] (cross-saturation: omega_e L_dq i_d in psi_q)
   kIntegralOmegaInD,     ///< int omega_e dt [rad] (cross-saturation: psi_q(0, i_q) linear in a moving i_q)
@@ -226,6 +226,8 @@ class BlockStatistics {
   /// sum sign(omega_e) dtheta_e (1 when the speed's unit is right); NaN without the angle or before
   /// two electrical turns.
   double loggedSpeedToAngleRatio() const;
+  /// The electrical angle the ratio above is measured over [rad].
+  double angleTravel() const { return angle_travel_; }
   const BlockD& lastBlockD() const { return last_d_; }
   const BlockQ& lastBlockQ() const { return last_q_; }
   const WindowSettings& settings() const { return settings_; }

@@ -247,7 +247,7 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   if (estimate_inverter) {
     out.inverter_modelled = true;
     out.inverter_voltage = f.beta(4);
-    out.inverter_wide_share = f.beta.size() > 5 ? f.beta(5) : 0.0;
+    out.inverter_wide_share = f.beta(5);
     out.inverter_relative_std = f.standard_deviation(4) / std::abs(f.beta(4));
   }
   for (int p = 0; p < kParameterCount; ++p) {
@@ -308,7 +308,10 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
       m.fit.ok = true;
       m.c = 1.0 / direct;  // as the speed-term scale: a speed logged k times too large fits 1/k
       m.c_std = 0.0;
-      const std::string unit = unitCause(m, 0.06, "the logged angle turns %.3g times as fast as the logged speed says");
+      // 6 % from two electrical turns, 2 % from twenty (the ratio is then good to about 0.6 %, and a
+      // speed in rpm of a 10-pole-pair motor, 4.7 % off, shows).
+      const double relevance = stats.angleTravel() > 40.0 * M_PI ? 0.02 : 0.06;
+      const std::string unit = unitCause(m, relevance, "the logged angle turns %.3g times as fast as the logged speed says");
       if (!unit.empty()) cause = unit;
       else out.speed_unit_verified = true;
     }

@@ -42,8 +42,9 @@ void BlockStatistics::reset() {
 }
 
 double BlockStatistics::loggedSpeedToAngleRatio() const {
-  // Two electrical turns within the long window make the ratio meaningful (quantisation and a
-  // filter's lag enter only at the ends and during speed changes).
+  // From two electrical turns within the long window: quantisation enters only at the ends, a speed
+  // filter's lag as lag x speed during speed changes (a 100 Hz filter after a ramp to 440 rad/s:
+  // 0.7 rad, 5.6 % of two turns, 0.6 % of twenty).
   if (!(angle_travel_ > 4.0 * M_PI)) return std::numeric_limits<double>::quiet_NaN();
   return speed_travel_ / angle_travel_;
 }
@@ -234,9 +235,9 @@ bool BlockStatistics::add(const Sample& s) {
     inverterShapeIntegral(p, c, s, dt, width, inv_d, inv_q);
     c.Inv_d = p.Inv_d + inv_d;
     c.Inv_q = p.Inv_q + inv_q;
-    // The same with twice the width (a sharp sign change: a width of 2 % of the current): how much
-    // the estimates depend on the zero-crossing shape, which nobody knows exactly.
-    if (settings_.inverter_width_sensitivity) {
+    // The same with twice the width (a sharp sign change: a width of 2 % of the current): the
+    // second shape of the mix the zero-crossing shape is fitted as (nobody logs the true width).
+    if (settings_.inverter_wide_shape) {
       const double wide = width > 0 ? 2.0 * width : 0.02 * std::sqrt(c.i_d * c.i_d + c.i_q * c.i_q) + 1e-12;
       inverterShapeIntegral(p, c, s, dt, wide, inv_d, inv_q);
       c.Wide_d = p.Wide_d + inv_d;

@@ -39,7 +39,7 @@ ParameterVector OnlineIdentifier::nanVector() {
 namespace {
 WindowSettings windowFor(const IdentifierConfig& c) {
   WindowSettings w = c.window;
-  w.inverter_width_sensitivity = c.inverter.estimate_voltage;  // the extra column only when it is used
+  w.inverter_wide_shape = c.inverter.estimate_voltage;  // the extra column only when it is used
   return w;
 }
 }  // namespace
