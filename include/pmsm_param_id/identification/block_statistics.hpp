@@ -245,7 +245,8 @@ class BlockStatistics {
     std::array<double, 3> phase;            // phase currents a, b, c (when theta_e is known)
   };
   void inverterShapeIntegral(const Cumulative& previous, const Cumulative& current, const Sample& s, double dt,
-                             double width, double& int_d, double& int_q) const;
+                             double width, const std::array<double, 3>& mid_bend, double& int_d,
+                             double& int_q) const;
   void rescale();
   void updateOffsetProjection();
 
