@@ -162,6 +162,10 @@ TEST(IdentifierConfig, BadValuesNameTheKey) {
   c = {};
   c.swarm.particles = 1;
   EXPECT_EQ(message(c), "cfg.yaml: key 'swarm.particles': population must be >= 2");
+  c = {};
+  c.window.sensor_gains = true;
+  EXPECT_EQ(message(c), "cfg.yaml: key 'current_sensors.gains': estimate needs current_sensors.offsets: estimate "
+                        "(the same projection)");
   const std::string path = test_helpers::writeTemp(
       "bad_id.yaml", "bounds:\n  R_s: [3.0, 1.0]\n  L_d: [1e-3, 2e-3]\n  L_q: [1e-3, 2e-3]\n  psi_f: [0.1, 0.2]\n");
   try {

@@ -46,6 +46,9 @@ struct WindowSettings {
   /// constant stator-frame offset o adds o_a (cos theta) + o_b (sin theta) terms to each block
   /// residual, so the statistics are projected off Dcos, Dsin, int cos, int sin (a Schur complement).
   bool sensor_offsets = false;
+  /// The same for the phase sensors' gain mismatch (terms at 2 theta times the currents; needs
+  /// sensor_offsets' machinery and the logged angle).
+  bool sensor_gains = false;
 };
 
 /// Entries of the sensor-offset block vector, shared by both axes (WindowSettings::sensor_offsets).
@@ -54,6 +57,14 @@ enum OffsetEntry : int {
   kDeltaSin,         ///< [-]
   kIntegralCos,      ///< int cos theta_e dt [s]
   kIntegralSin,      ///< [s]
+  // Gain mismatch of the phase sensors (sensor_gains): a negative-sequence error A P + B Q in d and
+  // B P - A Q in q, P = cos 2theta i_d - sin 2theta i_q, Q = sin 2theta i_d + cos 2theta i_q.
+  kDeltaP,           ///< P(t_k) - P(t_j) [A]
+  kDeltaQ,           ///< [A]
+  kIntegralP,        ///< int P dt [A s]
+  kIntegralQ,        ///< [A s]
+  kIntegralOmegaP,   ///< int omega_e P dt [A]
+  kIntegralOmegaQ,   ///< [A]
   kOffsetBlockSize
 };
 
@@ -240,6 +251,7 @@ class BlockStatistics {
     double u_d, u_q;                        // the sample's own (commanded) voltage
     double I_d, I_q, OmIq, OmId, U_d, U_q, Om, Ustep_d, Ustep_q, Inv_d, Inv_q, Wide_d, Wide_q;
     double cos_theta, sin_theta, I_cos, I_sin;  // sensor offsets: cos, sin of the angle and their integrals
+    double P, Q, I_P, I_Q, W_P, W_Q;            // sensor gains: P, Q of the sample and their integrals
     double shape_d, shape_q;                // inverter error shape s at the sample
     double theta_e;                         // electrical angle (NaN when not logged)
     std::array<double, 3> phase;            // phase currents a, b, c (when theta_e is known)

@@ -164,6 +164,11 @@ bool BlockStatistics::add(const Sample& s) {
   if (settings_.sensor_offsets && std::isfinite(s.theta_e)) {
     c.cos_theta = std::cos(s.theta_e);
     c.sin_theta = std::sin(s.theta_e);
+    if (settings_.sensor_gains) {
+      const double c2 = c.cos_theta * c.cos_theta - c.sin_theta * c.sin_theta, s2 = 2.0 * c.sin_theta * c.cos_theta;
+      c.P = c2 * s.i_d - s2 * s.i_q;
+      c.Q = s2 * s.i_d + c2 * s.i_q;
+    }
   }
   inverterShape(s, c.shape_d, c.shape_q, &c.phase);  // the phase currents too, when the angle is known
   const std::size_t cap = ring_.size();
@@ -239,6 +244,13 @@ bool BlockStatistics::add(const Sample& s) {
     }
     c.I_cos = p.I_cos + h * (p.cos_theta + c.cos_theta);
     c.I_sin = p.I_sin + h * (p.sin_theta + c.sin_theta);
+    if (settings_.sensor_gains) {
+      c.I_P = p.I_P + h * (p.P + c.P);
+      c.I_Q = p.I_Q + h * (p.Q + c.Q);
+      const double half_turn = c.Om - p.Om;  // omega_e dt of this period (from the angle when logged)
+      c.W_P = p.W_P + 0.5 * half_turn * (p.P + c.P);
+      c.W_Q = p.W_Q + 0.5 * half_turn * (p.Q + c.Q);
+    }
     c.Ustep_d = p.Ustep_d + dt * (p.applied_d - p.applied_prev_d);
     c.Ustep_q = p.Ustep_q + dt * (p.applied_q - p.applied_prev_q);
     double inv_d = 0.0, inv_q = 0.0;
@@ -282,7 +294,18 @@ bool BlockStatistics::add(const Sample& s) {
   stored_weight_ += scale_;
   OffsetBlock zn = OffsetBlock::Zero();
   if (settings_.sensor_offsets) {
-    zn << c.cos_theta - a.cos_theta, c.sin_theta - a.sin_theta, c.I_cos - a.I_cos, c.I_sin - a.I_sin;
+    zn(kDeltaCos) = c.cos_theta - a.cos_theta;
+    zn(kDeltaSin) = c.sin_theta - a.sin_theta;
+    zn(kIntegralCos) = c.I_cos - a.I_cos;
+    zn(kIntegralSin) = c.I_sin - a.I_sin;
+    if (settings_.sensor_gains) {
+      zn(kDeltaP) = c.P - a.P;
+      zn(kDeltaQ) = c.Q - a.Q;
+      zn(kIntegralP) = c.I_P - a.I_P;
+      zn(kIntegralQ) = c.I_Q - a.I_Q;
+      zn(kIntegralOmegaP) = c.W_P - a.W_P;
+      zn(kIntegralOmegaQ) = c.W_Q - a.W_Q;
+    }
     N_.noalias() += scale_ * zn * zn.transpose();
     C_d_.noalias() += scale_ * zd * zn.transpose();
     C_q_.noalias() += scale_ * zq * zn.transpose();
@@ -337,6 +360,7 @@ bool BlockStatistics::add(const Sample& s) {
       e.U_d -= base.U_d; e.U_q -= base.U_q; e.Om -= base.Om; e.Ustep_d -= base.Ustep_d;
       e.Ustep_q -= base.Ustep_q; e.Inv_d -= base.Inv_d; e.Inv_q -= base.Inv_q;
       e.Wide_d -= base.Wide_d; e.Wide_q -= base.Wide_q; e.I_cos -= base.I_cos; e.I_sin -= base.I_sin;
+      e.I_P -= base.I_P; e.I_Q -= base.I_Q; e.W_P -= base.W_P; e.W_Q -= base.W_Q;
     }
   }
   return true;

@@ -18,6 +18,8 @@ void validate(const IdentifierConfig& c, const std::string& source) {
   };
   if (!isKnownMethod(c.method)) fail("method", "unknown method '" + c.method + "' (expected " + methodList() + ")");
   if (!(c.map.cell_fraction > 0.0 && c.map.cell_fraction < 1.0)) fail("map.cell_fraction", "must be in (0, 1) [-]");
+  if (c.window.sensor_gains && !c.window.sensor_offsets)
+    fail("current_sensors.gains", "estimate needs current_sensors.offsets: estimate (the same projection)");
   if (c.magnetics.cross_saturation && c.inverter.estimate_voltage)
     fail("magnetics.cross_saturation", "not together with inverter.model: estimate (not supported yet)");
   for (int p = 0; p < kParameterCount; ++p) {
@@ -136,6 +138,7 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   c.inverter.max_relative_uncertainty =
       y.positive("inverter.max_relative_uncertainty", c.inverter.max_relative_uncertainty);
   c.window.sensor_offsets = y.oneOf("current_sensors.offsets", "none", {"none", "estimate"}) == "estimate";
+  c.window.sensor_gains = y.oneOf("current_sensors.gains", "none", {"none", "estimate"}) == "estimate";
   bool thermal_reference_missing = false;
   if (y.has("thermal")) {
     ThermalSettings& t = c.thermal;
