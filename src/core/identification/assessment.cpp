@@ -281,8 +281,25 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     const double V = out.inverter_modelled ? out.inverter_voltage : 0.0;
     const double V_wide = out.inverter_modelled ? out.inverter_wide_share : 0.0;
     const WindowSums corrected = compensated(window, V, V_wide);
+    // With the logged angle the block integrals take omega_e dt from it, so a wrong speed unit no
+    // longer shows in the fit; the logged speed is compared with the angle's rate directly. Where
+    // that verifies the unit, a speed-term ratio away from 1 is not a unit error and names nothing.
+    std::string direct_cause;
+    bool unit_known = false;
+    const double direct = stats.loggedSpeedToAngleRatio();
+    if (std::isfinite(direct)) {
+      SpeedScale m;
+      m.fit.ok = true;
+      m.c = 1.0 / direct;  // as the speed-term scale: a speed logged k times too large fits 1/k
+      m.c_std = 0.0;
+      // 6 % from two electrical turns, 2 % from twenty (the ratio is then good to about 0.6 %, and a
+      // speed in rpm of a 10-pole-pair motor, 4.7 % off, shows).
+      const double relevance = stats.angleTravel() > 40.0 * M_PI ? 0.02 : 0.06;
+      direct_cause = unitCause(m, relevance, "the logged angle turns %.3g times as fast as the logged speed says");
+      unit_known = direct_cause.empty();
+    }
     const SpeedScale short_scale = measureSpeedScale(corrected, a, out);
-    std::string cause = misspecification(corrected, a, out, short_scale);
+    std::string cause = misspecification(corrected, a, out, unit_known ? SpeedScale{} : short_scale);
     // The unit of the speed shows only where the window holds q-axis current steps; the fitness
     // window may have forgotten them (a start-up, a load step), the long window has not.
     WindowSums long_window = compensated(stats.longWindow(), V, V_wide);
@@ -298,23 +315,10 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
       out.speed_scale_long = long_scale.scale();
       // A unit error explains the misfit of every other alternative too: it names the cause first.
       const std::string unit = unitCause(long_scale, 0.06);
-      if (!unit.empty()) cause = unit + " (over the long check window)";
+      if (!unit.empty() && !unit_known) cause = unit + " (over the long check window)";
     }
-    // With the logged angle the block integrals take omega_e dt from it, so a wrong speed unit no
-    // longer shows in the fit; the logged speed is compared with the angle's rate directly.
-    const double direct = stats.loggedSpeedToAngleRatio();
-    if (std::isfinite(direct)) {
-      SpeedScale m;
-      m.fit.ok = true;
-      m.c = 1.0 / direct;  // as the speed-term scale: a speed logged k times too large fits 1/k
-      m.c_std = 0.0;
-      // 6 % from two electrical turns, 2 % from twenty (the ratio is then good to about 0.6 %, and a
-      // speed in rpm of a 10-pole-pair motor, 4.7 % off, shows).
-      const double relevance = stats.angleTravel() > 40.0 * M_PI ? 0.02 : 0.06;
-      const std::string unit = unitCause(m, relevance, "the logged angle turns %.3g times as fast as the logged speed says");
-      if (!unit.empty()) cause = unit;
-      else out.speed_unit_verified = true;
-    }
+    if (!direct_cause.empty()) cause = direct_cause;
+    if (unit_known) out.speed_unit_verified = true;
     if (!cause.empty()) {
       out.consistent = false;
       out.likely_cause = cause;

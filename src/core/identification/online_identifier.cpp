@@ -296,10 +296,15 @@ Estimate OnlineIdentifier::estimate() const {
   const bool retest = fit_blocks_ == ~0ull || stats_.blocks() < fit_blocks_ ||
                       stats_.blocks() - fit_blocks_ >= stale_after || !fit_cache_.available;
   const bool inverter = config_.inverter.estimate_voltage;
-  const double v_start = fit_cache_.inverter_modelled && std::isfinite(fit_cache_.inverter_voltage) ? fit_cache_.inverter_voltage : 0.0;
+  // Warm-started only from a plausible previous fit: a degenerate one (a window of a few blocks that
+  // the sensor terms explain almost entirely read 2e7 V) would otherwise seed every later fit, and
+  // directions the data leave open keep their start values.
+  bool warm = fit_cache_.available;
+  for (int p = 0; p < kParameterCount && warm; ++p) warm = plausible(p, fit_cache_.optimum[p]);
+  const double cached_v = fit_cache_.inverter_voltage;
+  const double v_start = warm && fit_cache_.inverter_modelled && std::isfinite(cached_v) && std::abs(cached_v) < 1e3 ? cached_v : 0.0;
   const bool cross = config_.magnetics.cross_saturation;
-  FitCheck fit = checkFit(stats_, config_.assessment, fit_cache_.available ? fit_cache_.optimum : start, retest, inverter,
-                          v_start, cross);
+  FitCheck fit = checkFit(stats_, config_.assessment, warm ? fit_cache_.optimum : start, retest, inverter, v_start, cross);
   if (!fit.available && fit_cache_.available) fit = checkFit(stats_, config_.assessment, start, retest, inverter, 0.0, cross);
   if (retest) {
     fit_blocks_ = stats_.blocks();
