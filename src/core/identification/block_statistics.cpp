@@ -383,18 +383,28 @@ void BlockStatistics::rescale() {
 namespace {
 // Pseudo-inverse of the offset entries' sums (positive semidefinite; singular at standstill or
 // without the angle), equilibrated by their diagonal.
-OffsetProduct offsetPseudoInverse(const OffsetProduct& N) {
-  OffsetBlock scale;
-  for (int i = 0; i < kOffsetBlockSize; ++i) scale(i) = N(i, i) > 0 ? 1.0 / std::sqrt(N(i, i)) : 0.0;
-  const OffsetProduct scaled = scale.asDiagonal() * N * scale.asDiagonal();
-  const Eigen::SelfAdjointEigenSolver<OffsetProduct> eig(scaled);
-  const OffsetBlock values = eig.eigenvalues();
+template <int K>
+Eigen::Matrix<double, K, K> pseudoInverseOf(const Eigen::Matrix<double, K, K>& N) {
+  using Vector = Eigen::Matrix<double, K, 1>;
+  using Matrix = Eigen::Matrix<double, K, K>;
+  Vector scale;
+  for (int i = 0; i < K; ++i) scale(i) = N(i, i) > 0 ? 1.0 / std::sqrt(N(i, i)) : 0.0;
+  const Matrix scaled = scale.asDiagonal() * N * scale.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Matrix> eig(scaled);
+  const Vector values = eig.eigenvalues();
   const double largest = values.maxCoeff();
-  OffsetBlock inverse = OffsetBlock::Zero();
-  for (int i = 0; i < kOffsetBlockSize; ++i)
+  Vector inverse = Vector::Zero();
+  for (int i = 0; i < K; ++i)
     if (largest > 0 && values(i) > 1e-3 * largest) inverse(i) = 1.0 / values(i);
-  const OffsetProduct pinv = eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
+  const Matrix pinv = eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
   return scale.asDiagonal() * pinv * scale.asDiagonal();
+}
+// Offsets only: the four offset entries (the gain entries are zero), at a fraction of the cost.
+OffsetProduct offsetPseudoInverse(const OffsetProduct& N, bool gains) {
+  if (gains) return pseudoInverseOf<kOffsetBlockSize>(N);
+  OffsetProduct out = OffsetProduct::Zero();
+  out.topLeftCorner<kDeltaP, kDeltaP>() = pseudoInverseOf<kDeltaP>(N.topLeftCorner<kDeltaP, kDeltaP>());
+  return out;
 }
 // S - C N^+ C^T: the sums of an axis with its offset terms fitted out (a Schur complement).
 template <class Product, class Cross>
@@ -410,7 +420,7 @@ Product projectOffsets(const Product& S_full, const Cross& C, const OffsetProduc
 }  // namespace
 
 void BlockStatistics::updateOffsetProjection() {
-  const OffsetProduct pinv = offsetPseudoInverse(N_);
+  const OffsetProduct pinv = offsetPseudoInverse(N_, settings_.sensor_gains);
   P_d_ = projectOffsets(ProductD(S_d_.selfadjointView<Eigen::Upper>()), C_d_, pinv);
   P_q_ = projectOffsets(ProductQ(S_q_.selfadjointView<Eigen::Upper>()), C_q_, pinv);
 }
@@ -431,7 +441,7 @@ WindowSums BlockStatistics::longWindow() const {
   WindowSums w;
   if (long_weight_ <= 0) return w;
   if (settings_.sensor_offsets) {
-    const OffsetProduct pinv = offsetPseudoInverse(long_N_);
+    const OffsetProduct pinv = offsetPseudoInverse(long_N_, settings_.sensor_gains);
     w.mean_d = projectOffsets(long_d_, long_C_d_, pinv) / long_weight_;
     w.mean_q = projectOffsets(long_q_, long_C_q_, pinv) / long_weight_;
   } else {
