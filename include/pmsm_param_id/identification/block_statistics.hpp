@@ -165,8 +165,8 @@ class BlockStatistics {
     // Quadratic forms on the upper triangles (the lower ones are not maintained), with the trip
     // counts fixed at compile time so that the compiler unrolls them.
     // (The q form continues the d form's sum: the same order of additions as one loop over both.)
-    const ProductD& Sd = settings_.sensor_offsets ? P_d_ : S_d_;
-    const ProductQ& Sq = settings_.sensor_offsets ? P_q_ : S_q_;
+    const ProductD& Sd = settings_.sensor_offsets ? projectedD() : S_d_;
+    const ProductQ& Sq = settings_.sensor_offsets ? P_q_ : S_q_;  // projectedD() updated both
     if (inverter_wide_share_ != 0.0) {  // the zero-crossing shape as a mix of two widths
       const double Vw = inverter_wide_share_;
       const double wd7[7] = {wd[0], wd[1], wd[2], wd[3], (V - Vw) * inv_Ld, 0.0, Vw * inv_Ld};
@@ -260,7 +260,13 @@ class BlockStatistics {
                              double width, const std::array<double, 3>& mid_bend, double& int_d,
                              double& int_q) const;
   void rescale();
-  void updateOffsetProjection();
+  /// The projection is computed when a fit first reads it after new data (RLS, the EKF and the
+  /// exact fit read it every few hundred samples, the swarm's fitness every sample).
+  void updateOffsetProjection() const;
+  const ProductD& projectedD() const {
+    if (projection_stale_) updateOffsetProjection();
+    return P_d_;
+  }
 
   WindowSettings settings_;
   int block_samples_ = 0;
@@ -278,8 +284,9 @@ class BlockStatistics {
   OffsetProduct N_ = OffsetProduct::Zero();
   OffsetCrossD C_d_ = OffsetCrossD::Zero();
   OffsetCrossQ C_q_ = OffsetCrossQ::Zero();
-  ProductD P_d_ = ProductD::Zero();
-  ProductQ P_q_ = ProductQ::Zero();
+  mutable ProductD P_d_ = ProductD::Zero();
+  mutable ProductQ P_q_ = ProductQ::Zero();
+  mutable bool projection_stale_ = true;
   OffsetProduct long_N_ = OffsetProduct::Zero();
   OffsetCrossD long_C_d_ = OffsetCrossD::Zero();
   OffsetCrossQ long_C_q_ = OffsetCrossQ::Zero();

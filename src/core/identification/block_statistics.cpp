@@ -35,6 +35,7 @@ void BlockStatistics::reset() {
   C_q_.setZero();
   P_d_.setZero();
   P_q_.setZero();
+  projection_stale_ = true;
   long_N_.setZero();
   long_C_d_.setZero();
   long_C_q_.setZero();
@@ -326,7 +327,7 @@ bool BlockStatistics::add(const Sample& s) {
   have_previous_block_ = true;
   ++blocks_;
   if (scale_ > 1e150) rescale();
-  if (settings_.sensor_offsets) updateOffsetProjection();
+  projection_stale_ = true;
   // Every M-th block of a stretch: consecutive non-overlapping blocks, and the long window keeps
   // their differences. Differencing removes what varies slowly (a drifting R_s or psi_f would
   // otherwise bias a constant-parameter fit over seconds) and keeps the steps.
@@ -419,10 +420,11 @@ Product projectOffsets(const Product& S_full, const Cross& C, const OffsetProduc
 }
 }  // namespace
 
-void BlockStatistics::updateOffsetProjection() {
+void BlockStatistics::updateOffsetProjection() const {
   const OffsetProduct pinv = offsetPseudoInverse(N_, settings_.sensor_gains);
   P_d_ = projectOffsets(ProductD(S_d_.selfadjointView<Eigen::Upper>()), C_d_, pinv);
   P_q_ = projectOffsets(ProductQ(S_q_.selfadjointView<Eigen::Upper>()), C_q_, pinv);
+  projection_stale_ = false;
 }
 
 WindowSums BlockStatistics::window() const {
@@ -455,12 +457,15 @@ WindowSums BlockStatistics::longWindow() const {
 
 ProductD BlockStatistics::meanProductD() const {
   if (stored_weight_ <= 0) return ProductD::Zero();
-  if (settings_.sensor_offsets) return P_d_ / stored_weight_;
+  if (settings_.sensor_offsets) return projectedD() / stored_weight_;
   return ProductD(S_d_.selfadjointView<Eigen::Upper>()) / stored_weight_;
 }
 ProductQ BlockStatistics::meanProductQ() const {
   if (stored_weight_ <= 0) return ProductQ::Zero();
-  if (settings_.sensor_offsets) return P_q_ / stored_weight_;
+  if (settings_.sensor_offsets) {
+    projectedD();  // updates both axes
+    return P_q_ / stored_weight_;
+  }
   return ProductQ(S_q_.selfadjointView<Eigen::Upper>()) / stored_weight_;
 }
 ProductD BlockStatistics::meanDifferenceProductD() const {
@@ -506,8 +511,8 @@ double BlockStatistics::fitnessWithCrossSaturation(const ParameterVector& p) con
   wq[kIntegralInverterQ] = V * inv_Lq;
   wq[kDeltaIdInQ] = Ldq * inv_Lq;
   wq[kIntegralOmegaIqInQ] = Ldq * inv_Lq;
-  const ProductD& Sd = settings_.sensor_offsets ? P_d_ : S_d_;
-  const ProductQ& Sq = settings_.sensor_offsets ? P_q_ : S_q_;
+  const ProductD& Sd = settings_.sensor_offsets ? projectedD() : S_d_;
+  const ProductQ& Sq = settings_.sensor_offsets ? P_q_ : S_q_;  // projectedD() updated both
   double f = 0.0;
   for (int i = 0; i < kBlockSizeD; ++i) {
     if (wd[static_cast<std::size_t>(i)] == 0.0) continue;
