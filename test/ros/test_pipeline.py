@@ -270,14 +270,19 @@ class BenchAndIdentifyInputs(unittest.TestCase):
         scenario = os.path.join(ROOT, "config", "scenarios", "wc1_drive.yaml")
         csv, other = os.path.join(tmp, "si.csv"), os.path.join(tmp, "other.csv")
         self.assertEqual(tool("pmsm_tool", "simulate", "--scenario", scenario, "--csv", csv, "--duration", "0.3").returncode, 0)
-        with open(csv) as f, open(other, "w") as g:
+        # Neither file has the angle (with it, omega_e dt would come from the angle in one and not
+        # the other: the same data, but a different integral).
+        si = os.path.join(tmp, "si_no_angle.csv")
+        with open(csv) as f, open(other, "w") as g, open(si, "w") as h:
             rows = list(csv_module.DictReader(f))
             g.write("time_ms,vd,vq,id_mA,iq_mA,speed_rpm\n")
+            h.write("t,u_d,u_q,i_d,i_q,omega_e\n")
             for x in rows:
                 g.write("%.17g,%s,%s,%.17g,%.17g,%.17g\n" % (float(x["t"]) * 1e3, x["u_d"], x["u_q"], float(x["i_d"]) * 1e3,
                                                            float(x["i_q"]) * 1e3, float(x["omega_e"]) / 4 * 60 / (2 * math.pi)))
+                h.write("%s,%s,%s,%s,%s,%s\n" % (x["t"], x["u_d"], x["u_q"], x["i_d"], x["i_q"], x["omega_e"]))
         a, b = os.path.join(tmp, "a.json"), os.path.join(tmp, "b.json")
-        self.assertEqual(tool("pmsm_tool", "identify", "--csv", csv, "--method", "rls", "--json", a).returncode, 0)
+        self.assertEqual(tool("pmsm_tool", "identify", "--csv", si, "--method", "rls", "--json", a).returncode, 0)
         r = tool("pmsm_tool", "identify", "--csv", other, "--method", "rls", "--json", b, "--column", "t=time_ms",
                  "--column", "u_d=vd", "--column", "u_q=vq", "--column", "i_d=id_mA", "--column", "i_q=iq_mA",
                  "--column", "omega_e=speed_rpm", "--time-unit", "ms", "--current-unit", "mA", "--speed-unit", "rpm",
