@@ -51,7 +51,8 @@ struct WindowSettings {
   bool sensor_gains = false;
 };
 
-/// Entries of the sensor-offset block vector, shared by both axes (WindowSettings::sensor_offsets).
+/// Entries of the current-sensor error block vector (offsets, and gain mismatch), shared by both
+/// axes (WindowSettings::sensor_offsets, sensor_gains).
 enum OffsetEntry : int {
   kDeltaCos = 0,     ///< cos theta_e(t_k) - cos theta_e(t_j) [-]
   kDeltaSin,         ///< [-]
@@ -167,6 +168,8 @@ class BlockStatistics {
     // (The q form continues the d form's sum: the same order of additions as one loop over both.)
     const ProductD& Sd = settings_.sensor_offsets ? projectedD() : S_d_;
     const ProductQ& Sq = settings_.sensor_offsets ? P_q_ : S_q_;  // projectedD() updated both
+    static_assert(kIntegralInverterD == 4 && kIntegralInverterWideD == 6 && kIntegralInverterQ == 5 &&
+                      kIntegralInverterWideQ == 7, "the fitness's weight arrays follow the block entries");
     if (inverter_wide_share_ != 0.0) {  // the zero-crossing shape as a mix of two widths
       const double Vw = inverter_wide_share_;
       const double wd7[7] = {wd[0], wd[1], wd[2], wd[3], (V - Vw) * inv_Ld, 0.0, Vw * inv_Ld};

@@ -248,9 +248,9 @@ bool BlockStatistics::add(const Sample& s) {
     if (settings_.sensor_gains) {
       c.I_P = p.I_P + h * (p.P + c.P);
       c.I_Q = p.I_Q + h * (p.Q + c.Q);
-      const double half_turn = c.Om - p.Om;  // omega_e dt of this period (from the angle when logged)
-      c.W_P = p.W_P + 0.5 * half_turn * (p.P + c.P);
-      c.W_Q = p.W_Q + 0.5 * half_turn * (p.Q + c.Q);
+      const double period_angle = c.Om - p.Om;  // omega_e dt of this period (from the angle when logged)
+      c.W_P = p.W_P + 0.5 * period_angle * (p.P + c.P);
+      c.W_Q = p.W_Q + 0.5 * period_angle * (p.Q + c.Q);
     }
     c.Ustep_d = p.Ustep_d + dt * (p.applied_d - p.applied_prev_d);
     c.Ustep_q = p.Ustep_q + dt * (p.applied_q - p.applied_prev_q);
