@@ -166,8 +166,9 @@ class BlockStatistics {
     // Quadratic forms on the upper triangles (the lower ones are not maintained), with the trip
     // counts fixed at compile time so that the compiler unrolls them.
     // (The q form continues the d form's sum: the same order of additions as one loop over both.)
-    const ProductD& Sd = settings_.sensor_offsets ? projectedD() : S_d_;
-    const ProductQ& Sq = settings_.sensor_offsets ? P_q_ : S_q_;  // projectedD() updated both
+    if (settings_.sensor_offsets) refreshProjection();
+    const ProductD& Sd = settings_.sensor_offsets ? P_d_ : S_d_;
+    const ProductQ& Sq = settings_.sensor_offsets ? P_q_ : S_q_;
     static_assert(kIntegralInverterD == 4 && kIntegralInverterWideD == 6 && kIntegralInverterQ == 5 &&
                       kIntegralInverterWideQ == 7, "the fitness's weight arrays follow the block entries");
     if (inverter_wide_share_ != 0.0) {  // the zero-crossing shape as a mix of two widths
@@ -266,9 +267,8 @@ class BlockStatistics {
   /// The projection is computed when a fit first reads it after new data (RLS, the EKF and the
   /// exact fit read it every few hundred samples, the swarm's fitness every sample).
   void updateOffsetProjection() const;
-  const ProductD& projectedD() const {
+  void refreshProjection() const {
     if (projection_stale_) updateOffsetProjection();
-    return P_d_;
   }
 
   WindowSettings settings_;

@@ -213,7 +213,11 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   out.relative_std.fill(std::numeric_limits<double>::infinity());
   if (!stats.hasBlocks()) return out;
   estimate_cross = estimate_cross && !estimate_inverter;
-  Eigen::VectorXd s(estimate_inverter || estimate_cross ? 6 : 4);
+  WindowSums window = stats.window();
+  const LinearBlockModel model = estimate_inverter ? LinearBlockModel::inverterWithShape()
+                                 : estimate_cross  ? LinearBlockModel::crossSaturation(window.crossLinearisationCurrent())
+                                                   : LinearBlockModel::paper();
+  Eigen::VectorXd s(model.size());
   for (int p = 0; p < kParameterCount; ++p) s(p) = start[p];
   if (estimate_inverter) {
     s(4) = inverter_start;
@@ -223,17 +227,12 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     s(4) = stats.crossSaturationSet() ? stats.crossLqq() : start[kLq];
     s(5) = stats.crossSaturationSet() ? stats.crossLdq() : 0.0;
   }
-  WindowSums window = stats.window();
   // Floor: a residual below fit_floor_relative of the RMS current is a fit even without noise; the
   // parameters' uncertainties assume at least that much residual (WindowSums::min_noise_variance).
   const double current_ms = (window.mean_d(kIntegralId, kIntegralId) + window.mean_q(kIntegralIq, kIntegralIq)) /
                             (window.block_duration * window.block_duration);
   const double floor2 = a.fit_floor_relative * a.fit_floor_relative * current_ms;
   window.min_noise_variance = floor2;
-  const LinearBlockModel model = estimate_inverter ? LinearBlockModel::inverterWithShape()
-                                 : estimate_cross  ? LinearBlockModel::crossSaturation(window.crossLinearisationCurrent())
-                                                   : LinearBlockModel::paper();
-  s.conservativeResize(model.size());
   const BlockFit f = BlockLeastSquares::fit(window, model, s, {}, a.variance_inflation);
   if (!f.ok) return out;
   out.available = true;

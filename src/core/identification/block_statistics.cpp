@@ -181,9 +181,9 @@ bool BlockStatistics::add(const Sample& s) {
     c.applied_q = delayed ? p.u_q : s.u_q;
     if (delayed && std::isfinite(p.theta_e) && std::isfinite(s.theta_e)) {
       const double miss = std::remainder(p.theta_e + p.omega_e * dt - s.theta_e, 2.0 * M_PI);
-      const double cm = std::cos(miss), sm = std::sin(miss);
-      c.applied_d = cm * p.u_d - sm * p.u_q;
-      c.applied_q = sm * p.u_d + cm * p.u_q;
+      const Vec2 applied = rotate({p.u_d, p.u_q}, miss);
+      c.applied_d = applied.x;
+      c.applied_q = applied.y;
     }
     c.applied_prev_d = p.applied_d;
     c.applied_prev_q = p.applied_q;
@@ -457,13 +457,16 @@ WindowSums BlockStatistics::longWindow() const {
 
 ProductD BlockStatistics::meanProductD() const {
   if (stored_weight_ <= 0) return ProductD::Zero();
-  if (settings_.sensor_offsets) return projectedD() / stored_weight_;
+  if (settings_.sensor_offsets) {
+    refreshProjection();
+    return P_d_ / stored_weight_;
+  }
   return ProductD(S_d_.selfadjointView<Eigen::Upper>()) / stored_weight_;
 }
 ProductQ BlockStatistics::meanProductQ() const {
   if (stored_weight_ <= 0) return ProductQ::Zero();
   if (settings_.sensor_offsets) {
-    projectedD();  // updates both axes
+    refreshProjection();
     return P_q_ / stored_weight_;
   }
   return ProductQ(S_q_.selfadjointView<Eigen::Upper>()) / stored_weight_;
@@ -511,21 +514,10 @@ double BlockStatistics::fitnessWithCrossSaturation(const ParameterVector& p) con
   wq[kIntegralInverterQ] = V * inv_Lq;
   wq[kDeltaIdInQ] = Ldq * inv_Lq;
   wq[kIntegralOmegaIqInQ] = Ldq * inv_Lq;
-  const ProductD& Sd = settings_.sensor_offsets ? projectedD() : S_d_;
-  const ProductQ& Sq = settings_.sensor_offsets ? P_q_ : S_q_;  // projectedD() updated both
-  double f = 0.0;
-  for (int i = 0; i < kBlockSizeD; ++i) {
-    if (wd[static_cast<std::size_t>(i)] == 0.0) continue;
-    double row = 0.5 * Sd(i, i) * wd[static_cast<std::size_t>(i)];
-    for (int j = i + 1; j < kBlockSizeD; ++j) row += Sd(i, j) * wd[static_cast<std::size_t>(j)];
-    f += wd[static_cast<std::size_t>(i)] * row;
-  }
-  for (int i = 0; i < kBlockSizeQ; ++i) {
-    if (wq[static_cast<std::size_t>(i)] == 0.0) continue;
-    double row = 0.5 * Sq(i, i) * wq[static_cast<std::size_t>(i)];
-    for (int j = i + 1; j < kBlockSizeQ; ++j) row += Sq(i, j) * wq[static_cast<std::size_t>(j)];
-    f += wq[static_cast<std::size_t>(i)] * row;
-  }
+  if (settings_.sensor_offsets) refreshProjection();
+  const ProductD& Sd = settings_.sensor_offsets ? P_d_ : S_d_;
+  const ProductQ& Sq = settings_.sensor_offsets ? P_q_ : S_q_;
+  const double f = upperForm<kBlockSizeQ>(Sq, wq.data(), upperForm<kBlockSizeD>(Sd, wd.data(), 0.0));
   return std::max(0.0, 2.0 * f / stored_weight_);
 }
 

@@ -16,6 +16,10 @@ namespace {
 constexpr ParameterVector kGenericCentre{0.63, 2e-3, 2e-3, 0.063};
 // A parameter may centre the box once the window determines it to within this (1 sigma).
 constexpr double kCentringRelativeStd = 0.3;
+// The data's exact fit determines parameter p, to max_relative_std, at a value some PMSM could have.
+bool fitDetermines(const FitCheck& fit, int p, double max_relative_std) {
+  return fit.determined[p] && fit.relative_std[p] <= max_relative_std && plausible(p, fit.optimum[p]);
+}
 }  // namespace
 
 const char* toString(SampleStatus s) {
@@ -201,7 +205,7 @@ bool OnlineIdentifier::tryStart() {
                                   config_.magnetics.cross_saturation);
     if (!fit.available) return false;
     const auto usable = [&](int p) {
-      return fit.determined[p] && fit.relative_std[p] <= kCentringRelativeStd && plausible(p, fit.optimum[p]);
+      return fitDetermines(fit, p, kCentringRelativeStd);
     };
     if (!usable(kLd) && !usable(kLq)) return false;  // the motor's scale is not known yet
     ParameterVector centre = kGenericCentre;
@@ -222,10 +226,7 @@ void OnlineIdentifier::adoptExactFitTerms(const FitCheck& fit) {
   if (fit.cross_saturation_modelled && std::isfinite(fit.L_qq) && fit.L_qq > 0 && std::isfinite(fit.L_dq))
     stats_.setCrossSaturation(fit.L_dq, fit.L_qq);
   // The stationary hold's bending of the currents needs the inductances: the data's, once determined.
-  const auto known = [&](int p) {
-    return fit.available && fit.determined[p] && fit.relative_std[p] < 0.1 && plausible(p, fit.optimum[p]);
-  };
-  if (config_.window.stationary_hold && known(kLd) && known(kLq))
+  if (config_.window.stationary_hold && fit.available && fitDetermines(fit, kLd, 0.1) && fitDetermines(fit, kLq, 0.1))
     stats_.setHoldInductances(fit.optimum[kLd], fit.optimum[kLq]);
   // The swarm's fitness (and RLS, EKF) take the data's estimate of the inverter voltage as known:
   // the paper's swarm searches four dimensions; V is profiled out by the exact fit.
@@ -266,7 +267,7 @@ bool OnlineIdentifier::refreshSearchBox() {
   bool moved = false;
   for (int p = 0; p < kParameterCount; ++p) {
     const double x = fit.optimum[p];
-    if (!(fit.determined[p] && fit.relative_std[p] <= kCentringRelativeStd && plausible(p, x))) continue;
+    if (!fitDetermines(fit, p, kCentringRelativeStd)) continue;
     if (x < centre[p] / inner || x > centre[p] * inner) {
       centre[p] = x;
       moved = true;
