@@ -475,6 +475,15 @@ namespace {
 IdentifierConfig realDriveConfig() {
   return loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/real_drive.yaml"));
 }
+// Every parameter reported identified lies within `factor` times its stated uncertainty.
+void expectIdentifiedWithinStated(const Estimate& e, const ParameterVector& truth, const std::string& label,
+                                  double factor = 1.0) {
+  for (int p = 0; p < kParameterCount; ++p) {
+    if (!e.identifiable[p]) continue;
+    EXPECT_LE(std::abs(errorPercent(e.parameters[p], truth[p])), factor * 100 * e.relative_uncertainty[p])
+        << label << " " << parameterNames()[p] << " " << e.reason[p];
+  }
+}
 Scenario idealSensors(Scenario s) {
   s.sensors.phase_offset = {0, 0, 0};
   s.sensors.phase_gain = {1, 1, 1};
@@ -500,11 +509,7 @@ TEST(RealDriveIdentification, InverterErrorIsSeenWithoutTheModelAndEstimatedWith
     EXPECT_NE(e.fit.likely_cause.find("inverter voltage error"), std::string::npos) << e.fit.likely_cause;
     const Estimate m = identify(samplesOf(data), method, realDriveConfig());
     // R_s may stay unidentified: the unknown shape of the zero crossing leaves about +-1 % (reason).
-    for (int p = 0; p < kParameterCount; ++p) {
-      if (!m.identifiable[p]) continue;
-      EXPECT_LE(std::abs(errorPercent(m.parameters[p], truth[p])), 1.25 * 100 * m.relative_uncertainty[p])
-          << method << " " << parameterNames()[p] << " " << m.reason[p];
-    }
+    expectIdentifiedWithinStated(m, truth, method, 1.25);
     EXPECT_TRUE(m.fit.consistent) << method;
     EXPECT_EQ(m.inverter_status, ParameterStatus::Identified) << m.inverter_reason;
     EXPECT_NEAR(m.inverter_voltage, data.back().inverter_error_voltage, 0.05 * data.back().inverter_error_voltage);
@@ -526,10 +531,7 @@ TEST(RealDriveIdentification, AnEncoderDriveFitsThroughTheLoggedAngle) {
     const Estimate e = identify(samplesOf(data), method, realDriveConfig());
     EXPECT_TRUE(e.fit.consistent) << method << " d " << e.fit.fit_ratio_d << " q " << e.fit.fit_ratio_q;
     EXPECT_TRUE(e.identifiable[kLq] && e.identifiable[kPsiF]) << method << " " << e.reason[kLq] << " / " << e.reason[kPsiF];
-    for (int p = 0; p < kParameterCount; ++p)
-      if (e.identifiable[p])
-        EXPECT_LE(std::abs(errorPercent(e.parameters[p], truth[p])), 100 * e.relative_uncertainty[p])
-            << method << " " << parameterNames()[p];
+    expectIdentifiedWithinStated(e, truth, method);
   }
 }
 
@@ -554,10 +556,10 @@ TEST(RealDriveIdentification, SensorOffsetsArePoorFitUnlessFittedOut) {
     const Estimate e = identify(samplesOf(data), method, realDriveConfig());
     EXPECT_TRUE(e.fit.consistent) << method << " d " << e.fit.fit_ratio_d << " q " << e.fit.fit_ratio_q;
     EXPECT_TRUE(e.identifiable[kLq] && e.identifiable[kPsiF]) << method << " " << e.reason[kLq] << " / " << e.reason[kPsiF];
-    for (int p = 0; p < kParameterCount; ++p)
-      if (e.identifiable[p])
-        EXPECT_LE(std::abs(errorPercent(e.parameters[p], truth[p])), 1.0)
-            << method << " " << parameterNames()[p];
+    for (int p = 0; p < kParameterCount; ++p) {
+      if (!e.identifiable[p]) continue;
+      EXPECT_LE(std::abs(errorPercent(e.parameters[p], truth[p])), 1.0) << method << " " << parameterNames()[p];
+    }
   }
 }
 
@@ -579,10 +581,7 @@ TEST(RealDriveIdentification, SensorGainMismatchIsPoorFitUnlessFittedOut) {
     const Estimate e = identify(samplesOf(data), method, realDriveConfig());
     EXPECT_TRUE(e.fit.consistent) << method << " d " << e.fit.fit_ratio_d << " q " << e.fit.fit_ratio_q;
     EXPECT_TRUE(e.identifiable[kLq] && e.identifiable[kPsiF]) << method << " " << e.reason[kLq];
-    for (int p = 0; p < kParameterCount; ++p)
-      if (e.identifiable[p])
-        EXPECT_LE(std::abs(errorPercent(e.parameters[p], truth[p])), 100 * e.relative_uncertainty[p])
-            << method << " " << parameterNames()[p];
+    expectIdentifiedWithinStated(e, truth, method);
   }
 }
 
@@ -602,11 +601,7 @@ TEST(RealDriveIdentification, StationaryHoldUndeclaredIsAPoorFitDeclaredIsRight)
   for (const char* method : {"fbdapso", "rls"}) {
     const Estimate e = identify(samplesOf(data), method, c);
     EXPECT_TRUE(e.identifiable[kLq]) << method << " " << e.reason[kLq];
-    for (int p = 0; p < kParameterCount; ++p)
-      if (e.identifiable[p]) {
-        const double err = std::abs(errorPercent(e.parameters[p], data.back().truth[p]));
-        EXPECT_LE(err, 1.25 * 100 * e.relative_uncertainty[p]) << method << " " << parameterNames()[p];
-      }
+    expectIdentifiedWithinStated(e, data.back().truth, method, 1.25);
   }
 }
 
@@ -627,10 +622,7 @@ TEST(RealDriveIdentification, TheStationaryHoldsBendingOfTheCurrentsIsCorrected)
     for (const char* method : {"wls", "fbdapso"}) {
       const Estimate e = identify(samplesOf(data), method, c);
       EXPECT_TRUE(e.identifiable[kLq]) << method << " " << e.reason[kLq];
-      for (int p = 0; p < kParameterCount; ++p)
-        if (e.identifiable[p])
-          EXPECT_LE(std::abs(errorPercent(e.parameters[p], data.back().truth[p])), 100 * e.relative_uncertainty[p])
-              << method << " seed " << seed << " " << parameterNames()[p];
+      expectIdentifiedWithinStated(e, data.back().truth, std::string(method) + " seed " + std::to_string(seed));
     }
   }
 }
