@@ -1,4 +1,4 @@
-// bag_tool csv2bag CSV BAG   : a drive log (t,u_d,u_q,i_d,i_q,omega_e[,theta_e][,R_s,L_d,L_q,psi_f]) as a bag
+// bag_tool csv2bag CSV BAG   : a drive log (t,u_d,u_q,i_d,i_q,omega_e[,theta_e][,v_dc][,R_s,L_d,L_q,psi_f]) as a bag
 //                              that replay.launch plays (/drive/samples_batch, /drive/true_parameters).
 // bag_tool bag2csv BAG CSV   : the samples of a bag as a drive log, with the identifier node's time
 //                              base (seconds since the first stamp), so ./run identify sees exactly
@@ -40,7 +40,9 @@ int csv2bag(const std::string& csv, const std::string& bag_path, std::size_t bat
   ParameterVector truth{};
   auto flush = [&]() {
     if (msg.u_d.empty()) return;
-    if (std::all_of(msg.theta_e.begin(), msg.theta_e.end(), [](double a) { return std::isnan(a); })) msg.theta_e.clear();
+    const auto none = [](const std::vector<double>& v) { return std::all_of(v.begin(), v.end(), [](double a) { return std::isnan(a); }); };
+    if (none(msg.theta_e)) msg.theta_e.clear();
+    if (none(msg.v_dc)) msg.v_dc.clear();
     bag.write(kBatchTopic, msg.header.stamp, msg);
     if (log.has_truth) bag.write(kTruthTopic, msg.header.stamp, toMessage(truth, msg.header.stamp));
     written += msg.u_d.size();
@@ -70,6 +72,7 @@ int csv2bag(const std::string& csv, const std::string& bag_path, std::size_t bat
     msg.i_q.push_back(s.i_q);
     msg.omega_e.push_back(s.omega_e);
     msg.theta_e.push_back(s.theta_e);
+    msg.v_dc.push_back(s.v_dc);
   }
   flush();
   bag.close();
@@ -91,7 +94,13 @@ int bag2csv(const std::string& bag_path, const std::string& csv, const std::stri
     if (auto t = m.instantiate<ElectricalParameters>()) truth[t->header.stamp] = {t->R_s, t->L_d, t->L_q, t->psi_f};
   StreamClock clock;
   std::vector<SimulatedSample> rows;
+  std::size_t older = 0;  // DriveSampleBatch of an older definition (before v_dc)
   for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery(topic))) {
+    if (m.getDataType() == ros::message_traits::DataType<DriveSampleBatch>::value() &&
+        m.getMD5Sum() != ros::message_traits::MD5Sum<DriveSampleBatch>::value()) {
+      ++older;
+      continue;
+    }
     auto b = m.instantiate<DriveSampleBatch>();
     if (!b || !checkBatch(*b).empty()) continue;
     ParameterVector p{NAN, NAN, NAN, NAN};
@@ -104,6 +113,10 @@ int bag2csv(const std::string& bag_path, const std::string& csv, const std::stri
       rows.push_back(s);
     }
   }
+  if (rows.empty() && older > 0)
+    throw InputError(bag_path + ": " + std::to_string(older) + " DriveSampleBatch messages on " + topic +
+                     " of an older definition (before v_dc); upgrade the bag first: rosbag fix " + bag_path +
+                     " NEW.bag $(rospack find pmsm_param_id)/migration_rules/drive_samples.bmr");
   if (rows.empty()) throw InputError(bag_path + ": no DriveSampleBatch messages on " + topic);
   writeSampleCsv(csv, rows);
   std::printf("wrote %zu samples to %s\n", rows.size(), csv.c_str());

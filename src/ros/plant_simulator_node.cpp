@@ -100,6 +100,7 @@ int main(int argc, char** argv) {
       msg.i_q.push_back(s.sample.i_q);
       msg.omega_e.push_back(s.sample.omega_e);
       msg.theta_e.push_back(s.sample.theta_e);
+      msg.v_dc.push_back(s.sample.v_dc);
       if ((msg.first_index + static_cast<std::uint64_t>(k)) % static_cast<std::uint64_t>(decimation) == 0) {
         DriveSample one;
         one.header.stamp = msg.header.stamp + ros::Duration(k * Ts);
@@ -109,6 +110,7 @@ int main(int argc, char** argv) {
         one.i_q = s.sample.i_q;
         one.omega_e = s.sample.omega_e;
         one.theta_e = s.sample.theta_e;
+        one.v_dc = s.sample.v_dc;
         singles.push_back(one);
       }
     }

@@ -76,11 +76,13 @@ class StreamClock {
 inline Sample toSample(const DriveSampleBatch& b, std::size_t k, double t) {
   Sample s{t, b.u_d[k], b.u_q[k], b.i_d[k], b.i_q[k], b.omega_e[k]};
   if (b.theta_e.size() == b.u_d.size()) s.theta_e = b.theta_e[k];
+  if (b.v_dc.size() == b.u_d.size()) s.v_dc = b.v_dc[k];
   return s;
 }
 inline Sample toSample(const DriveSample& m, double t) {
   Sample s{t, m.u_d, m.u_q, m.i_d, m.i_q, m.omega_e};
   s.theta_e = m.theta_e;
+  s.v_dc = m.v_dc;
   return s;
 }
 
@@ -91,6 +93,7 @@ inline std::string checkBatch(const DriveSampleBatch& b) {
     return "arrays of different lengths";
   if (n > 1 && !(b.sample_period > 0)) return "sample_period must be > 0";
   if (!b.theta_e.empty() && b.theta_e.size() != n) return "theta_e must be empty or as long as the other arrays";
+  if (!b.v_dc.empty() && b.v_dc.size() != n) return "v_dc must be empty or as long as the other arrays";
   return "";
 }
 

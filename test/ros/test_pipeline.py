@@ -433,6 +433,35 @@ class CsvToBag(unittest.TestCase):
         for value, true in zip(est[-1][1], truth(bag)):
             self.assertLess(abs(value - true) / true, 0.01)
 
+    def test_a_bag_recorded_before_v_dc_is_named_and_upgraded_by_rosbag_fix(self):
+        # test/data/drive_samples_0.1.0.bag: 200 robot-joint samples written by bag_tool 0.1.0, when
+        # DriveSampleBatch had no v_dc. Read as it is, the tool names the upgrade; rosbag fix with the
+        # package's rules makes it readable, every sample kept and v_dc "not logged".
+        tmp = tempfile.mkdtemp(prefix="pmsm_migration_")
+        old = os.path.join(ROOT, "test", "data", "drive_samples_0.1.0.bag")
+        rules = os.path.join(ROOT, "migration_rules", "drive_samples.bmr")
+        fixed, csv = os.path.join(tmp, "fixed.bag"), os.path.join(tmp, "fixed.csv")
+        r = tool("bag_tool", "bag2csv", old, csv)
+        self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+        self.assertIn("older definition (before v_dc)", r.stderr)
+        self.assertIn("rosbag fix", r.stderr)
+        r = subprocess.run(["rosbag", "fix", old, fixed, rules], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                           text=True, timeout=120)
+        self.assertEqual(r.returncode, 0, r.stdout)
+        r = tool("bag_tool", "bag2csv", fixed, csv)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(csv) as f:
+            rows = list(csv_module.DictReader(f))
+        self.assertEqual(len(rows), 200)
+        self.assertTrue(all(math.isnan(float(row["v_dc"])) for row in rows))
+        self.assertTrue(all(math.isfinite(float(row["theta_e"])) for row in rows))
+        with rosbag.Bag(old) as bag_old, rosbag.Bag(fixed) as bag_new:
+            before = [m for _, m, _ in bag_old.read_messages(topics=["/drive/samples_batch"], raw=True)]
+            after = [m for _, m, _ in bag_new.read_messages(topics=["/drive/samples_batch"])]
+        self.assertEqual(len(before), len(after))
+        self.assertEqual(sum(len(m.i_q) for m in after), 200)
+        self.assertTrue(all(len(m.v_dc) == 0 for m in after))
+
     def test_not_a_csv_is_one_clear_line(self):
         tmp = tempfile.mkdtemp(prefix="pmsm_csv2bag_")
         bad = os.path.join(tmp, "bad.csv")

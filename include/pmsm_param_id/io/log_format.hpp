@@ -7,9 +7,11 @@
 namespace pmsm_param_id {
 
 struct LogFormat {
-  /// Column name in the file for each quantity: t, u_d, u_q, i_d, i_q, omega_e, theta_e (optional).
-  std::map<std::string, std::string> columns{{"t", "t"},     {"u_d", "u_d"}, {"u_q", "u_q"},        {"i_d", "i_d"},
-                                             {"i_q", "i_q"}, {"omega_e", "omega_e"}, {"theta_e", "theta_e"}};
+  /// Column name in the file for each quantity: t, u_d, u_q, i_d, i_q, omega_e; theta_e and v_dc
+  /// (the DC-bus voltage) are optional.
+  std::map<std::string, std::string> columns{{"t", "t"},         {"u_d", "u_d"},         {"u_q", "u_q"},
+                                             {"i_d", "i_d"},     {"i_q", "i_q"},         {"omega_e", "omega_e"},
+                                             {"theta_e", "theta_e"}, {"v_dc", "v_dc"}};
   std::string time_unit = "s";        ///< s | ms | us
   std::string speed_unit = "rad/s";   ///< rad/s (electrical) | mech_rad/s | rpm (mechanical) | hz (electrical)
   std::string current_unit = "A";     ///< A | mA
@@ -23,6 +25,7 @@ struct LogFormat {
   double speedFactor() const;
   double currentFactor() const;  ///< includes the dq scaling
   double voltageFactor() const;  ///< includes the dq scaling
+  double busVoltageFactor() const;  ///< the voltage unit only (the bus voltage is not a dq quantity)
   double angleFactor() const;
   /// ConfigError naming `source` and the key when a unit is unknown or pole pairs are missing.
   void validate(const std::string& source) const;

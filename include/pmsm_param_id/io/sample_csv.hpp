@@ -1,4 +1,4 @@
-// Drive logs as CSV: header t,u_d,u_q,i_d,i_q,omega_e (SI, omega_e electrical) [,theta_e] [,R_s,L_d,L_q,psi_f].
+// Drive logs as CSV: header t,u_d,u_q,i_d,i_q,omega_e (SI, omega_e electrical) [,theta_e] [,v_dc] [,R_s,L_d,L_q,psi_f].
 #pragma once
 #include <string>
 #include <vector>
@@ -23,7 +23,7 @@ void writeSampleCsv(const std::string& path, const std::vector<SimulatedSample>&
 /// Reads a log. Extra columns are ignored. A missing column, a row with the wrong number of cells
 /// or a non-numeric cell throws InputError naming the file and line. "nan"/"inf" cells are kept
 /// as non-finite values so that the identifier can skip and count them.
-/// `format` names and scales the columns (default: SI names t,u_d,u_q,i_d,i_q,omega_e[,theta_e]).
+/// `format` names and scales the columns (default: SI names t,u_d,u_q,i_d,i_q,omega_e[,theta_e][,v_dc]).
 SampleLog readSampleCsv(const std::string& path, const LogFormat& format = {});
 
 }  // namespace pmsm_param_id

@@ -14,6 +14,9 @@ struct Sample {
   double i_q = 0.0;      ///< measured q-axis current [A]
   double omega_e = 0.0;  ///< electrical speed [rad/s] (= pole pairs x mechanical speed)
   double theta_e = std::numeric_limits<double>::quiet_NaN();  ///< electrical angle [rad]; NaN = not logged
+  /// DC-bus voltage measured at t [V]; NaN = not logged. The inverter's dead-time error scales with
+  /// it (doc/algorithm.md section 8).
+  double v_dc = std::numeric_limits<double>::quiet_NaN();
 };
 
 }  // namespace pmsm_param_id

@@ -19,11 +19,11 @@ void writeSampleCsv(const std::string& path, const std::vector<SimulatedSample>&
   const std::string tmp = path + ".tmp." + std::to_string(::getpid());
   FILE* f = std::fopen(tmp.c_str(), "w");
   if (!f) throw std::runtime_error(path + ": cannot write (" + std::string(std::strerror(errno)) + ")");
-  std::fputs("t,u_d,u_q,i_d,i_q,omega_e,theta_e,R_s,L_d,L_q,psi_f\n", f);
+  std::fputs("t,u_d,u_q,i_d,i_q,omega_e,theta_e,v_dc,R_s,L_d,L_q,psi_f\n", f);
   for (const SimulatedSample& s : samples) {
     const Sample& x = s.sample;
-    std::fprintf(f, "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", x.t, x.u_d, x.u_q, x.i_d,
-                 x.i_q, x.omega_e, x.theta_e, s.truth[kRs], s.truth[kLd], s.truth[kLq], s.truth[kPsiF]);
+    std::fprintf(f, "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", x.t, x.u_d, x.u_q,
+                 x.i_d, x.i_q, x.omega_e, x.theta_e, x.v_dc, s.truth[kRs], s.truth[kLd], s.truth[kLq], s.truth[kPsiF]);
   }
   const bool ok = std::ferror(f) == 0;
   if (std::fclose(f) != 0 || !ok || std::rename(tmp.c_str(), path.c_str()) != 0) {
@@ -73,8 +73,15 @@ SampleLog readSampleCsv(const std::string& path, const LogFormat& format) {
                        " (name the columns with --column or a --format file)");
     index[i] = it->second;
   }
-  const auto theta_it = column.find(format.columns.at("theta_e"));
+  // The optional columns: a format that does not name one reads it under its own name.
+  const auto optional = [&](const char* quantity) {
+    const auto named = format.columns.find(quantity);
+    return column.find(named != format.columns.end() ? named->second : std::string(quantity));
+  };
+  const auto theta_it = optional("theta_e");
   const bool has_theta = theta_it != column.end();
+  const auto bus_it = optional("v_dc");
+  const bool has_bus = bus_it != column.end();
   SampleLog log;
   std::size_t truth_index[4];
   log.has_truth = true;
@@ -111,6 +118,7 @@ SampleLog readSampleCsv(const std::string& path, const LogFormat& format) {
     s.i_q = number(cells, index[4]) * format.currentFactor();
     s.omega_e = number(cells, index[5]) * format.speedFactor();
     if (has_theta) s.theta_e = number(cells, theta_it->second) * format.angleFactor();
+    if (has_bus) s.v_dc = number(cells, bus_it->second) * format.busVoltageFactor();
     log.samples.push_back(s);
     log.line_numbers.push_back(line_no);
     if (log.has_truth) {
