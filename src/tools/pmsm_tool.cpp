@@ -80,7 +80,8 @@ json estimateJson(const Estimate& e) {
   j["inverter_voltage"] = {{"value", numberOrNull(e.inverter_voltage)},
                            {"status", toString(e.inverter_status)},
                            {"reason", e.inverter_reason},
-                           {"relative_uncertainty", numberOrNull(e.inverter_relative_uncertainty)}};
+                           {"relative_uncertainty", numberOrNull(e.inverter_relative_uncertainty)},
+                           {"bus_share", numberOrNull(e.fit.inverter_bus_share)}};
   j["fitness"] = numberOrNull(e.fitness);
   j["samples"] = e.counters.used;
   j["skipped"] = e.counters.skipped();
@@ -1019,7 +1020,7 @@ int main(int argc, char** argv) {
         const auto eq = c.find('=');
         if (eq == std::string::npos || !format.columns.count(c.substr(0, eq)))
           throw ConfigError("--column: expected QUANTITY=HEADER with QUANTITY one of t, u_d, u_q, i_d, i_q, omega_e, "
-                            "theta_e; got '" + c + "'");
+                            "theta_e, v_dc; got '" + c + "'");
         format.columns[c.substr(0, eq)] = c.substr(eq + 1);
       }
       if (!time_unit.empty()) format.time_unit = time_unit;

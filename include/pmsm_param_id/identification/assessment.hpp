@@ -56,6 +56,9 @@ struct FitCheck {
   /// The zero-crossing shape: the part of V whose error builds up over twice the configured current
   /// (the rest over the configured current) [V]; see LinearBlockModel::inverterWithShape().
   double inverter_wide_share = 0.0;
+  /// The part of V that follows the logged DC-bus voltage (the dead time's), at the first logged bus
+  /// voltage [V]; 0 without a logged bus (LinearBlockModel::inverterWithShapeAndBus()).
+  double inverter_bus_share = 0.0;
   double inverter_relative_std = std::numeric_limits<double>::infinity();  ///< of V [-]
   bool cross_saturation_modelled = false;  ///< the fit estimated L_qq and L_dq (magnetics.cross_saturation)
   double L_qq = NAN, L_dq = NAN;           ///< incremental q and cross-saturation inductances [H]

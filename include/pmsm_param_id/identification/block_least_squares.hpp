@@ -12,7 +12,8 @@
 //                or mechanical rad/s, or time in ms, shows as their ratio to the Di terms);
 //   delay:       a multiple a of int(u_k - u_k-1) (a = 1: the voltage acts one sample late);
 //   inverter:    a voltage V along the current vector (dead time, device drops), and with the
-//                zero-crossing shape as a mix of two widths;
+//                zero-crossing shape as a mix of two widths, and with the dead-time part following
+//                a logged DC-bus voltage;
 //   cross saturation: the incremental L_qq and the cross inductance L_dq of a saturating machine.
 #pragma once
 #include <Eigen/Core>
@@ -40,6 +41,9 @@ struct LinearBlockModel {
   /// + {V, V_wide}: the inverter voltage with its zero-crossing shape, a mix of the shape over the
   /// configured current (share V - V_wide) and over twice it (share V_wide).
   static const LinearBlockModel& inverterWithShape();
+  /// + {V_bus}: the part of V that scales with the logged DC-bus voltage (the dead time's; the device
+  /// drops do not), at the first logged bus voltage [V] (block entries kIntegralInverterBus*).
+  static const LinearBlockModel& inverterWithShapeAndBus();
   /// + {L_qq, L_dq}: a saturating machine about the q current i_bar (WindowSums::
   /// crossLinearisationCurrent()); L_q is then the secant inductance psi_q(0, i_bar) / i_bar, psi_f
   /// the flux psi_d(0, i_bar), L_qq the incremental q inductance, L_dq the cross-saturation (section 11).

@@ -24,6 +24,7 @@
 #pragma once
 #include <Eigen/Core>
 #include <algorithm>
+#include <cmath>
 #include <array>
 #include <cstdint>
 #include <limits>
@@ -78,6 +79,7 @@ enum BlockEntryD : int {
   kIntegralInverterD,    ///< int s_d dt [s]: shape of the inverter voltage error (see below)
   kIntegralUdStep,       ///< int (u_d,k - u_d,k-1) dt [V s] (delay diagnosis)
   kIntegralInverterWideD,  ///< int s_d dt with twice the zero-crossing width (the fitted shape mix) [s]
+  kIntegralInverterBusD,   ///< int (v_dc / v_dc,ref - 1) s_d dt: the dead-time part follows the logged bus [s]
   kDeltaIqInD,           ///< i_q(t_k) - i_q(t_j) [A] (cross-saturation: L_dq di_q/dt in the d axis)
   kIntegralOmegaIdInD,   ///< int omega_e i_d dt [A] (cross-saturation: omega_e L_dq i_d in psi_q)
   kIntegralOmegaInD,     ///< int omega_e dt [rad] (cross-saturation: psi_q(0, i_q) linear in a moving i_q)
@@ -93,6 +95,7 @@ enum BlockEntryQ : int {
   kIntegralInverterQ,    ///< int s_q dt [s]
   kIntegralUqStep,       ///< [V s]
   kIntegralInverterWideQ,  ///< [s]
+  kIntegralInverterBusQ,   ///< [s]
   kDeltaIdInQ,           ///< i_d(t_k) - i_d(t_j) [A] (cross-saturation: L_dq di_d/dt in the q axis)
   kIntegralOmegaIqInQ,   ///< int omega_e i_q dt [A] (cross-saturation: psi_d(0, i_q) linear in a moving i_q)
   kBlockSizeQ
@@ -169,8 +172,15 @@ class BlockStatistics {
     if (settings_.sensor_offsets) refreshProjection();
     const ProductD& Sd = settings_.sensor_offsets ? P_d_ : S_d_;
     const ProductQ& Sq = settings_.sensor_offsets ? P_q_ : S_q_;
-    static_assert(kIntegralInverterD == 4 && kIntegralInverterWideD == 6 && kIntegralInverterQ == 5 &&
-                      kIntegralInverterWideQ == 7, "the fitness's weight arrays follow the block entries");
+    static_assert(kIntegralInverterD == 4 && kIntegralInverterWideD == 6 && kIntegralInverterBusD == 7 &&
+                      kIntegralInverterQ == 5 && kIntegralInverterWideQ == 7 && kIntegralInverterBusQ == 8,
+                  "the fitness's weight arrays follow the block entries");
+    if (inverter_bus_share_ != 0.0) {  // the shape mix, and the dead-time part following the logged bus
+      const double Vw = inverter_wide_share_, Vb = inverter_bus_share_;
+      const double wd8[8] = {wd[0], wd[1], wd[2], wd[3], (V - Vw) * inv_Ld, 0.0, Vw * inv_Ld, Vb * inv_Ld};
+      const double wq9[9] = {wq[0], wq[1], wq[2], wq[3], wq[4], (V - Vw) * inv_Lq, 0.0, Vw * inv_Lq, Vb * inv_Lq};
+      return std::max(0.0, 2.0 * upperForm<9>(Sq, wq9, upperForm<8>(Sd, wd8, 0.0)) / stored_weight_);
+    }
     if (inverter_wide_share_ != 0.0) {  // the zero-crossing shape as a mix of two widths
       const double Vw = inverter_wide_share_;
       const double wd7[7] = {wd[0], wd[1], wd[2], wd[3], (V - Vw) * inv_Ld, 0.0, Vw * inv_Ld};
@@ -196,14 +206,21 @@ class BlockStatistics {
   /// inductance (it enters through omega_e psi_q only), p[kPsiF] the flux psi_d(0, i_q).
   double fitnessWithCrossSaturation(const ParameterVector& p) const;
 
-  /// The inverter voltage the fitness subtracts (0: none) [V], and the part of it that builds up
-  /// over twice the zero-crossing current [V]; set from the data's exact fit.
-  void setInverterVoltage(double v, double wide_share = 0.0) {
+  /// The inverter voltage the fitness subtracts (0: none) [V], the part of it that builds up over
+  /// twice the zero-crossing current [V], and the part that scales with the logged bus voltage (the
+  /// dead time's, at the reference bus voltage) [V]; set from the data's exact fit.
+  void setInverterVoltage(double v, double wide_share = 0.0, double bus_share = 0.0) {
     inverter_voltage_ = v;
     inverter_wide_share_ = v != 0.0 ? wide_share : 0.0;
+    inverter_bus_share_ = v != 0.0 ? bus_share : 0.0;
   }
   double inverterVoltage() const { return inverter_voltage_; }
   double inverterWideShare() const { return inverter_wide_share_; }
+  double inverterBusShare() const { return inverter_bus_share_; }
+  /// The samples carried the DC-bus voltage (the bus entries are not all zero).
+  bool busVoltageLogged() const { return std::isfinite(bus_reference_); }
+  /// The bus voltage the bus entries are relative to: the first one logged [V] (NaN: none yet).
+  double busReference() const { return bus_reference_; }
   /// Inductances for the stationary hold's bending of the currents within a period [H] (0: none);
   /// set from the data's exact fit (the correction is a fraction of a per cent of the integrals).
   void setHoldInductances(double L_d, double L_q) {
@@ -253,7 +270,8 @@ class BlockStatistics {
     double applied_d, applied_q;            // voltage acting on [t, t_next)
     double applied_prev_d, applied_prev_q;  // voltage that acted on the period before
     double u_d, u_q;                        // the sample's own (commanded) voltage
-    double I_d, I_q, OmIq, OmId, U_d, U_q, Om, Ustep_d, Ustep_q, Inv_d, Inv_q, Wide_d, Wide_q;
+    double I_d, I_q, OmIq, OmId, U_d, U_q, Om, Ustep_d, Ustep_q, Inv_d, Inv_q, Wide_d, Wide_q, Bus_d, Bus_q;
+    double bus_ratio;                       // v_dc / bus_reference_ - 1 at the sample (0: not logged)
     double cos_theta, sin_theta, I_cos, I_sin;  // sensor offsets: cos, sin of the angle and their integrals
     double P, Q, I_P, I_Q, W_P, W_Q;            // sensor gains: P, Q of the sample and their integrals
     double shape_d, shape_q;                // inverter error shape s at the sample
@@ -300,7 +318,8 @@ class BlockStatistics {
   double scale_ = 1.0;   // 1 / product of forgetting factors
   double weight_ = 0.0, difference_weight_ = 0.0;
   std::uint64_t blocks_ = 0;
-  double inverter_voltage_ = 0.0, inverter_wide_share_ = 0.0;
+  double inverter_voltage_ = 0.0, inverter_wide_share_ = 0.0, inverter_bus_share_ = 0.0;
+  double bus_reference_ = std::numeric_limits<double>::quiet_NaN();
   double hold_L_d_ = 0.0, hold_L_q_ = 0.0;
   double cross_L_dq_ = 0.0, cross_L_qq_ = 0.0;
   bool have_previous_block_ = false;

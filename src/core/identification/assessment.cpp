@@ -105,15 +105,18 @@ std::string unitCause(const SpeedScale& m, double min_log_ratio,
 }
 
 // The window with the reference voltages corrected by a known inverter voltage V, of which
-// V_wide builds up over twice the zero-crossing current: U <- U - (V - V_wide) int(s) - V_wide int(s_wide).
-WindowSums compensated(WindowSums w, double V, double V_wide) {
+// V_wide builds up over twice the zero-crossing current and V_bus follows the logged bus voltage:
+// U <- U - (V - V_wide) int(s) - V_wide int(s_wide) - V_bus int((v_dc / v_ref - 1) s).
+WindowSums compensated(WindowSums w, double V, double V_wide, double V_bus) {
   if (V == 0.0) return w;
   ProductD Ad = ProductD::Identity();
   Ad(kIntegralUd, kIntegralInverterD) = -(V - V_wide);
   Ad(kIntegralUd, kIntegralInverterWideD) = -V_wide;
+  Ad(kIntegralUd, kIntegralInverterBusD) = -V_bus;
   ProductQ Aq = ProductQ::Identity();
   Aq(kIntegralUq, kIntegralInverterQ) = -(V - V_wide);
   Aq(kIntegralUq, kIntegralInverterWideQ) = -V_wide;
+  Aq(kIntegralUq, kIntegralInverterBusQ) = -V_bus;
   w.mean_d = Ad * w.mean_d * Ad.transpose();
   w.mean_q = Aq * w.mean_q * Aq.transpose();
   w.mean_difference_d = Ad * w.mean_difference_d * Ad.transpose();
@@ -214,7 +217,9 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   if (!stats.hasBlocks()) return out;
   estimate_cross = estimate_cross && !estimate_inverter;
   WindowSums window = stats.window();
-  const LinearBlockModel model = estimate_inverter ? LinearBlockModel::inverterWithShape()
+  const bool with_bus = estimate_inverter && stats.busVoltageLogged();
+  const LinearBlockModel model = with_bus            ? LinearBlockModel::inverterWithShapeAndBus()
+                                 : estimate_inverter ? LinearBlockModel::inverterWithShape()
                                  : estimate_cross  ? LinearBlockModel::crossSaturation(window.crossLinearisationCurrent())
                                                    : LinearBlockModel::paper();
   Eigen::VectorXd s(model.size());
@@ -222,6 +227,7 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   if (estimate_inverter) {
     s(4) = inverter_start;
     s(5) = 0.0;  // the shape: linear in it, any start converges
+    if (with_bus) s(6) = 0.0;
   }
   if (estimate_cross) {  // from the last fit when there is one, else the linear machine
     s(4) = stats.crossSaturationSet() ? stats.crossLqq() : start[kLq];
@@ -247,6 +253,7 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     out.inverter_modelled = true;
     out.inverter_voltage = f.beta(4);
     out.inverter_wide_share = f.beta(5);
+    out.inverter_bus_share = with_bus ? f.beta(6) : 0.0;
     out.inverter_relative_std = f.standard_deviation(4) / std::abs(f.beta(4));
   }
   for (int p = 0; p < kParameterCount; ++p) {
@@ -279,7 +286,8 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   if (diagnose_misfit) {
     const double V = out.inverter_modelled ? out.inverter_voltage : 0.0;
     const double V_wide = out.inverter_modelled ? out.inverter_wide_share : 0.0;
-    const WindowSums corrected = compensated(window, V, V_wide);
+    const double V_bus = out.inverter_modelled ? out.inverter_bus_share : 0.0;
+    const WindowSums corrected = compensated(window, V, V_wide, V_bus);
     // With the logged angle the block integrals take omega_e dt from it, so a wrong speed unit no
     // longer shows in the fit; the logged speed is compared with the angle's rate directly. Where
     // that verifies the unit, a speed-term ratio away from 1 is not a unit error and names nothing.
@@ -301,7 +309,7 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     std::string cause = misspecification(corrected, a, out, unit_known ? SpeedScale{} : short_scale);
     // The unit of the speed shows only where the window holds q-axis current steps; the fitness
     // window may have forgotten them (a start-up, a load step), the long window has not.
-    WindowSums long_window = compensated(stats.longWindow(), V, V_wide);
+    WindowSums long_window = compensated(stats.longWindow(), V, V_wide, V_bus);
     out.speed_unit_verified = short_scale.verified();
     out.speed_scale_short = short_scale.scale();
     // With a saturating machine modelled the long window's differenced blocks gave spurious unit

@@ -160,6 +160,20 @@ const LinearBlockModel& LinearBlockModel::inverterWithShape() {
   return model;
 }
 
+const LinearBlockModel& LinearBlockModel::inverterWithShapeAndBus() {
+  // + V_bus (v_dc / v_ref - 1) s: the dead-time part of V follows the logged bus voltage, the
+  // device drops do not; V stays the amplitude at the reference bus voltage.
+  static const LinearBlockModel model = [] {
+    LinearBlockModel m = inverterWithShape();
+    m.name = "inverter_with_shape_and_bus";
+    const int bus = addParameter(m, "inverter_voltage_bus_share");
+    m.G_d(kIntegralInverterBusD, bus) = 1.0;
+    m.G_q(kIntegralInverterBusQ, bus) = 1.0;
+    return m;
+  }();
+  return model;
+}
+
 void BlockLeastSquares::residuals(const WindowSums& stats, const LinearBlockModel& model,
                                   const Eigen::VectorXd& beta, double& ms_d, double& ms_q, double& diff_ms_d,
                                   double& diff_ms_q) {

@@ -40,6 +40,7 @@ void BlockStatistics::reset() {
   long_C_d_.setZero();
   long_C_q_.setZero();
   speed_travel_ = angle_travel_ = pending_speed_travel_ = pending_angle_travel_ = 0.0;
+  bus_reference_ = std::numeric_limits<double>::quiet_NaN();
 }
 
 double BlockStatistics::loggedSpeedToAngleRatio() const {
@@ -172,6 +173,10 @@ bool BlockStatistics::add(const Sample& s) {
     }
   }
   inverterShape(s, c.shape_d, c.shape_q, &c.phase);  // the phase currents too, when the angle is known
+  // The bus voltage relative to the first one logged (a fixed reference, so that every block's
+  // entry means the same); a sample without it counts as the reference.
+  if (std::isfinite(s.v_dc) && s.v_dc > 0 && !std::isfinite(bus_reference_)) bus_reference_ = s.v_dc;
+  c.bus_ratio = std::isfinite(s.v_dc) && s.v_dc > 0 ? s.v_dc / bus_reference_ - 1.0 : 0.0;
   const std::size_t cap = ring_.size();
   if (count_ > 0) {
     const Cumulative& p = ring_[(head_ + count_ - 1) % cap];
@@ -259,6 +264,10 @@ bool BlockStatistics::add(const Sample& s) {
     inverterShapeIntegral(p, c, s, dt, width, mid_bend, inv_d, inv_q);
     c.Inv_d = p.Inv_d + inv_d;
     c.Inv_q = p.Inv_q + inv_q;
+    // The dead-time part of the error follows the bus voltage of the period (logged at its start):
+    // V_bus (v_dc / v_ref - 1) times the same shape integral.
+    c.Bus_d = p.Bus_d + p.bus_ratio * inv_d;
+    c.Bus_q = p.Bus_q + p.bus_ratio * inv_q;
     // The same with twice the width (a sharp sign change: a width of 2 % of the current): the
     // second shape of the mix the zero-crossing shape is fitted as (nobody logs the true width).
     if (settings_.inverter_wide_shape) {
@@ -285,9 +294,9 @@ bool BlockStatistics::add(const Sample& s) {
   BlockD zd;
   BlockQ zq;
   zd << c.i_d - a.i_d, c.I_d - a.I_d, c.OmIq - a.OmIq, c.U_d - a.U_d, c.Inv_d - a.Inv_d, c.Ustep_d - a.Ustep_d,
-      c.Wide_d - a.Wide_d, c.i_q - a.i_q, c.OmId - a.OmId, c.Om - a.Om;
+      c.Wide_d - a.Wide_d, c.Bus_d - a.Bus_d, c.i_q - a.i_q, c.OmId - a.OmId, c.Om - a.Om;
   zq << c.i_q - a.i_q, c.I_q - a.I_q, c.OmId - a.OmId, c.U_q - a.U_q, c.Om - a.Om, c.Inv_q - a.Inv_q,
-      c.Ustep_q - a.Ustep_q, c.Wide_q - a.Wide_q, c.i_d - a.i_d, c.OmIq - a.OmIq;
+      c.Ustep_q - a.Ustep_q, c.Wide_q - a.Wide_q, c.Bus_q - a.Bus_q, c.i_d - a.i_d, c.OmIq - a.OmIq;
   // Forgetting: every stored sum is implicitly multiplied by lambda; new terms enter with scale_.
   scale_ /= lambda_;
   rankOneUpper(S_d_, zd, scale_);
@@ -503,7 +512,9 @@ double BlockStatistics::fitnessWithCrossSaturation(const ParameterVector& p) con
   wd[kIntegralOmegaIq] = -Lqq * inv_Ld;
   wd[kIntegralOmegaInD] = -i_bar * (p[kLq] - Lqq) * inv_Ld;
   wd[kIntegralUd] = -inv_Ld;
-  wd[kIntegralInverterD] = V * inv_Ld;
+  wd[kIntegralInverterD] = (V - inverter_wide_share_) * inv_Ld;
+  wd[kIntegralInverterWideD] = inverter_wide_share_ * inv_Ld;
+  wd[kIntegralInverterBusD] = inverter_bus_share_ * inv_Ld;
   wd[kDeltaIqInD] = Ldq * inv_Ld;
   wd[kIntegralOmegaIdInD] = -Ldq * inv_Ld;
   wq[kDeltaIq] = 1.0;
@@ -511,7 +522,9 @@ double BlockStatistics::fitnessWithCrossSaturation(const ParameterVector& p) con
   wq[kIntegralOmegaId] = p[kLd] * inv_Lq;
   wq[kIntegralUq] = -inv_Lq;
   wq[kIntegralOmega] = (p[kPsiF] - i_bar * Ldq) * inv_Lq;
-  wq[kIntegralInverterQ] = V * inv_Lq;
+  wq[kIntegralInverterQ] = (V - inverter_wide_share_) * inv_Lq;
+  wq[kIntegralInverterWideQ] = inverter_wide_share_ * inv_Lq;
+  wq[kIntegralInverterBusQ] = inverter_bus_share_ * inv_Lq;
   wq[kDeltaIdInQ] = Ldq * inv_Lq;
   wq[kIntegralOmegaIqInQ] = Ldq * inv_Lq;
   if (settings_.sensor_offsets) refreshProjection();

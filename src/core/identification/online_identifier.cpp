@@ -232,8 +232,10 @@ void OnlineIdentifier::adoptExactFitTerms(const FitCheck& fit) {
   // the paper's swarm searches four dimensions; V is profiled out by the exact fit.
   if (!fit.inverter_modelled) return;
   const double V = fit.inverter_voltage;
-  const bool usable = std::isfinite(V) && V > 0 && fit.inverter_relative_std < 0.3 && std::isfinite(fit.inverter_wide_share);
-  stats_.setInverterVoltage(usable ? V : 0.0, usable ? fit.inverter_wide_share : 0.0);
+  const bool usable = std::isfinite(V) && V > 0 && fit.inverter_relative_std < 0.3 &&
+                      std::isfinite(fit.inverter_wide_share) && std::isfinite(fit.inverter_bus_share);
+  stats_.setInverterVoltage(usable ? V : 0.0, usable ? fit.inverter_wide_share : 0.0,
+                            usable ? fit.inverter_bus_share : 0.0);
 }
 
 bool OnlineIdentifier::refreshSearchBox() {

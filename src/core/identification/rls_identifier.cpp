@@ -26,10 +26,11 @@ void RlsIdentifier::update(const Sample& s, bool new_block, bool) {
   Vec5 phi_d = (Vec5() << d(kIntegralId), d(kDeltaId), -d(kIntegralOmegaIq), 0.0, d(kIntegralInverterD)).finished();
   Vec5 phi_q = (Vec5() << q(kIntegralIq), q(kIntegralOmegaId), q(kDeltaIq), q(kIntegralOmega), q(kIntegralInverterQ)).finished();
   // The inverter voltage's zero-crossing shape from the data's exact fit (V itself is RLS's fifth
-  // parameter): the part that builds up over twice the zero-crossing current moves to the measured side.
-  const double V_wide = stats_.inverterWideShare();
-  double y_d = d(kIntegralUd) - V_wide * (d(kIntegralInverterWideD) - d(kIntegralInverterD));
-  double y_q = q(kIntegralUq) - V_wide * (q(kIntegralInverterWideQ) - q(kIntegralInverterQ));
+  // parameter): the part that builds up over twice the zero-crossing current, and the part that
+  // follows the logged bus voltage, move to the measured side.
+  const double V_wide = stats_.inverterWideShare(), V_bus = stats_.inverterBusShare();
+  double y_d = d(kIntegralUd) - V_wide * (d(kIntegralInverterWideD) - d(kIntegralInverterD)) - V_bus * d(kIntegralInverterBusD);
+  double y_q = q(kIntegralUq) - V_wide * (q(kIntegralInverterWideQ) - q(kIntegralInverterQ)) - V_bus * q(kIntegralInverterBusQ);
   if (stats_.crossSaturationSet()) {
     // A saturating machine (section 11): the swarms' model, with L_qq and L_dq from the data's exact
     // fit taken as known and moved to the measured side; L_q and psi_f the secant and the flux at i_bar.
