@@ -560,6 +560,24 @@ TEST(RealDriveIdentification, TheDeadTimeFollowsTheLoggedBusVoltage) {
   }
 }
 
+// An inverter whose error changes sign within +-0.05 A, far sharper than the mix of the 0.3 and
+// 0.6 A shapes the config fits can represent: L_d reads 4-6 % and L_q 1.1-1.6 % high, so the fit
+// must stay poor and nothing may be reported identified outside its stated uncertainty. (A noise
+// allowance for the currents' noise in the shapes, tried for the robot joint's d residual, made this
+// fit "consistent" with L_q 1.1 % off at a stated +-0.37 %; it was not kept, doc/results.md.)
+TEST(RealDriveIdentification, AZeroCrossingSharperThanTheShapeMixIsPoorFit) {
+  Scenario s = idealSensors(test_helpers::scenario("robot_joint_realistic.yaml"));
+  s.inverter.zero_crossing_current = 0.05;
+  s.duration = 1.0;
+  const auto data = test_helpers::run(s);
+  const ParameterVector truth = data.back().truth;
+  for (const char* method : {"fbdapso", "wls"}) {
+    const Estimate e = identify(samplesOf(data), method, realDriveConfig());
+    EXPECT_FALSE(e.fit.consistent) << method << " d " << e.fit.fit_ratio_d << " q " << e.fit.fit_ratio_q;
+    expectIdentifiedWithinStated(e, truth, method);
+  }
+}
+
 // Phase-current sensor offsets (30 and -24 mA on the robot-joint motor: a current ripple at omega_e
 // that no voltage explains): not modelled, the fit is poor; fitted out (current_sensors.offsets:
 // estimate), the fit is consistent and every identified value within 1 % (the swarm's fitness and

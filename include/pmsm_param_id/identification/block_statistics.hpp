@@ -24,8 +24,8 @@
 #pragma once
 #include <Eigen/Core>
 #include <algorithm>
-#include <cmath>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <vector>
