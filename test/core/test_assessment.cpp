@@ -484,6 +484,13 @@ void expectIdentifiedWithinStated(const Estimate& e, const ParameterVector& trut
         << label << " " << parameterNames()[p] << " " << e.reason[p];
   }
 }
+/// A real-drive fit that must work: consistent, L_q and psi_f identified, every identified value
+/// within its stated uncertainty.
+void expectConsistentAndRight(const Estimate& e, const ParameterVector& truth, const std::string& method) {
+  EXPECT_TRUE(e.fit.consistent) << method << " d " << e.fit.fit_ratio_d << " q " << e.fit.fit_ratio_q;
+  EXPECT_TRUE(e.identifiable[kLq] && e.identifiable[kPsiF]) << method << " " << e.reason[kLq] << " / " << e.reason[kPsiF];
+  expectIdentifiedWithinStated(e, truth, method);
+}
 Scenario idealSensors(Scenario s) {
   s.sensors.phase_offset = {0, 0, 0};
   s.sensors.phase_gain = {1, 1, 1};
@@ -529,9 +536,7 @@ TEST(RealDriveIdentification, AnEncoderDriveFitsThroughTheLoggedAngle) {
   const ParameterVector truth = data.back().truth;
   for (const char* method : {"fbdapso", "rls"}) {
     const Estimate e = identify(samplesOf(data), method, realDriveConfig());
-    EXPECT_TRUE(e.fit.consistent) << method << " d " << e.fit.fit_ratio_d << " q " << e.fit.fit_ratio_q;
-    EXPECT_TRUE(e.identifiable[kLq] && e.identifiable[kPsiF]) << method << " " << e.reason[kLq] << " / " << e.reason[kPsiF];
-    expectIdentifiedWithinStated(e, truth, method);
+    expectConsistentAndRight(e, truth, method);
   }
 }
 
@@ -552,9 +557,7 @@ TEST(RealDriveIdentification, TheDeadTimeFollowsTheLoggedBusVoltage) {
   const double dead_time_part = s.drive.dc_bus_voltage * s.inverter.dead_time * s.inverter.switching_frequency;
   for (const char* method : {"fbdapso", "wls"}) {
     const Estimate e = identify(samplesOf(data), method, realDriveConfig());
-    EXPECT_TRUE(e.fit.consistent) << method << " d " << e.fit.fit_ratio_d << " q " << e.fit.fit_ratio_q;
-    EXPECT_TRUE(e.identifiable[kLq] && e.identifiable[kPsiF]) << method << " " << e.reason[kLq] << " / " << e.reason[kPsiF];
-    expectIdentifiedWithinStated(e, truth, method);
+    expectConsistentAndRight(e, truth, method);
     EXPECT_NEAR(e.inverter_voltage, data.back().inverter_error_voltage, 0.05 * data.back().inverter_error_voltage);
     EXPECT_NEAR(e.fit.inverter_bus_share, dead_time_part, 0.1 * dead_time_part) << method;  // 0.188 of 0.192 V (seed 1)
   }
@@ -622,9 +625,7 @@ TEST(RealDriveIdentification, SensorGainMismatchIsPoorFitUnlessFittedOut) {
   EXPECT_FALSE(poor.fit.consistent) << "d " << poor.fit.fit_ratio_d << " q " << poor.fit.fit_ratio_q;
   for (const char* method : {"fbdapso", "wls"}) {
     const Estimate e = identify(samplesOf(data), method, realDriveConfig());
-    EXPECT_TRUE(e.fit.consistent) << method << " d " << e.fit.fit_ratio_d << " q " << e.fit.fit_ratio_q;
-    EXPECT_TRUE(e.identifiable[kLq] && e.identifiable[kPsiF]) << method << " " << e.reason[kLq];
-    expectIdentifiedWithinStated(e, truth, method);
+    expectConsistentAndRight(e, truth, method);
   }
 }
 
