@@ -6,6 +6,7 @@
 #include "pmsm_param_id/identification/identifier_config.hpp"
 #include "pmsm_param_id/identification/identifiers.hpp"
 #include "pmsm_param_id/identification/online_identifier.hpp"
+#include "../src/tools/perf_points.hpp"
 
 using namespace pmsm_param_id;
 
@@ -49,13 +50,15 @@ BlockStatistics filledStatistics() {
 }
 }  // namespace
 
-// One fitness evaluation over the default window (independent of its length).
+// One fitness evaluation over the default window (independent of its length), at points that
+// differ in every parameter as a swarm's do (perf_points.hpp).
 static void BM_FitnessEvaluation(benchmark::State& state) {
   const BlockStatistics stats = filledStatistics();
-  ParameterVector p{2.9, 0.0046, 0.0134, 0.178};
+  const std::vector<ParameterVector> points = perfPoints({2.9, 0.0046, 0.0134, 0.178}, 20);
+  std::size_t k = 0;
   for (auto _ : state) {
-    p[kRs] += 1e-12;
-    benchmark::DoNotOptimize(stats.fitness(p));
+    benchmark::DoNotOptimize(stats.fitness(points[k]));
+    k = k + 1 == points.size() ? 0 : k + 1;
   }
 }
 BENCHMARK(BM_FitnessEvaluation);
