@@ -62,6 +62,8 @@ struct BlockFit {
   double mean_square_q = 0.0;       ///< mean r_q^2 at beta [A^2]
   double noise_variance_d = 0.0;    ///< block-residual variance that white current noise explains [A^2]
   double noise_variance_q = 0.0;
+  double current_noise_variance_d = 0.0;  ///< the currents' own noise, from the block ends alone [A^2]
+  double current_noise_variance_q = 0.0;
   Eigen::VectorXd standard_deviation;  ///< of beta from the window's information (inf: undetermined)
   double fitness() const { return mean_square_d + mean_square_q; }
 };

@@ -123,6 +123,7 @@ struct WindowSums {
   double weight = 0.0;               ///< effective number of blocks [-]
   bool has_differences = false;
   double block_duration = 0.0;       ///< [s]
+  int block_samples = 0;             ///< sampling periods per block, M [-] (0: unknown)
   double noise_variance_d = -1.0;    ///< known block-residual noise variance [A^2]; < 0: from the differences
   double noise_variance_q = -1.0;
   /// Floor of the noise variance behind the parameters' standard deviations [A^2]: the residual

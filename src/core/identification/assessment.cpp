@@ -261,8 +261,8 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     out.determined[p] = f.determined[p];
     out.relative_std[p] = f.standard_deviation(p) / std::abs(f.beta(p));
   }
-  out.noise_std_d = std::sqrt(0.5 * f.noise_variance_d);
-  out.noise_std_q = std::sqrt(0.5 * f.noise_variance_q);
+  out.noise_std_d = std::sqrt(f.current_noise_variance_d);
+  out.noise_std_q = std::sqrt(f.current_noise_variance_q);
   out.optimum_fitness = f.fitness();
   const ProductD& Sd = window.mean_d;
   const ProductQ& Sq = window.mean_q;

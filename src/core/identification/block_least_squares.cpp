@@ -265,7 +265,30 @@ BlockFit BlockLeastSquares::fit(const WindowSums& stats, const LinearBlockModel&
   // noise terms, so the residual variance that noise explains is half the difference variance.
   out.noise_variance_d *= 0.5;
   out.noise_variance_q *= 0.5;
-  if (!stats.has_differences) out.noise_variance_d = out.noise_variance_q = 0.0;
+  // That holds for the noise at a block's two ends (Di). The current noise inside the block also
+  // enters through the integrals of the currents, T v_j n per sample, M - 1/2 samples' worth, and
+  // blocks one sample apart share all but one of those: their differences do not show it. With
+  // a = T R / L per sample, r carries sigma^2 (2 + (M - 1/2) a^2) while half the difference
+  // variance is ~2 sigma^2. On the robot joint (0.08 ohm, 35 uH, 20 kHz, M = 100) that is a factor
+  // 1.65 in d: a right model read 1.4-1.6 times the noise. Added here with the speed terms' share
+  // (omega at its RMS over the window).
+  out.current_noise_variance_d = 0.5 * out.noise_variance_d;  // Di carries two samples' noise
+  out.current_noise_variance_q = 0.5 * out.noise_variance_q;
+  if (stats.has_differences && stats.block_samples > 1 && stats.block_duration > 0) {
+    const double M = stats.block_samples, T = stats.block_duration / M;
+    const double omega2 = std::max(0.0, stats.mean_q(kIntegralOmega, kIntegralOmega)) /
+                          (stats.block_duration * stats.block_duration);
+    const double inside_d = vd(kIntegralId) * vd(kIntegralId) +
+                            omega2 * (vd(kIntegralOmegaIq) * vd(kIntegralOmegaIq) +
+                                      vd(kIntegralOmegaIdInD) * vd(kIntegralOmegaIdInD));
+    const double inside_q = vq(kIntegralIq) * vq(kIntegralIq) +
+                            omega2 * (vq(kIntegralOmegaId) * vq(kIntegralOmegaId) +
+                                      vq(kIntegralOmegaIqInQ) * vq(kIntegralOmegaIqInQ));
+    out.noise_variance_d *= 1.0 + 0.5 * (M - 0.5) * T * T * inside_d;
+    out.noise_variance_q *= 1.0 + 0.5 * (M - 0.5) * T * T * inside_q;
+  }
+  if (!stats.has_differences)
+    out.noise_variance_d = out.noise_variance_q = out.current_noise_variance_d = out.current_noise_variance_q = 0.0;
   if (stats.noise_variance_d >= 0) out.noise_variance_d = stats.noise_variance_d;
   if (stats.noise_variance_q >= 0) out.noise_variance_q = stats.noise_variance_q;
 

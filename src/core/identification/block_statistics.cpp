@@ -445,6 +445,7 @@ WindowSums BlockStatistics::window() const {
   w.weight = weight_;
   w.has_differences = difference_weight_ > 0;
   w.block_duration = blockDuration();
+  w.block_samples = block_samples_;
   return w;
 }
 
@@ -461,6 +462,7 @@ WindowSums BlockStatistics::longWindow() const {
   }
   w.weight = long_weight_;
   w.block_duration = blockDuration();
+  w.block_samples = block_samples_;
   return w;
 }
 
