@@ -28,6 +28,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include "pmsm_param_id/model/motor_model.hpp"
@@ -170,23 +171,17 @@ class BlockStatistics {
     // Quadratic forms on the upper triangles (the lower ones are not maintained), with the trip
     // counts fixed at compile time so that the compiler unrolls them.
     // (The q form continues the d form's sum: the same order of additions as one loop over both.)
-    if (settings_.sensor_offsets) refreshProjection();
-    const ProductD& Sd = settings_.sensor_offsets ? P_d_ : S_d_;
-    const ProductQ& Sq = settings_.sensor_offsets ? P_q_ : S_q_;
+    const auto [Sd, Sq] = fitnessSums();
     static_assert(kIntegralInverterD == 4 && kIntegralInverterWideD == 6 && kIntegralInverterBusD == 7 &&
                       kIntegralInverterQ == 5 && kIntegralInverterWideQ == 7 && kIntegralInverterBusQ == 8,
                   "the fitness's weight arrays follow the block entries");
-    if (inverter_bus_share_ != 0.0) {  // the shape mix, and the dead-time part following the logged bus
+    if (inverter_wide_share_ != 0.0 || inverter_bus_share_ != 0.0) {
+      // The zero-crossing shape as a mix of two widths, and the dead-time part following the logged
+      // bus (a zero share adds exact zeros: the same value as the shorter forms).
       const double Vw = inverter_wide_share_, Vb = inverter_bus_share_;
       const double wd8[8] = {wd[0], wd[1], wd[2], wd[3], (V - Vw) * inv_Ld, 0.0, Vw * inv_Ld, Vb * inv_Ld};
       const double wq9[9] = {wq[0], wq[1], wq[2], wq[3], wq[4], (V - Vw) * inv_Lq, 0.0, Vw * inv_Lq, Vb * inv_Lq};
       return std::max(0.0, 2.0 * upperForm<9>(Sq, wq9, upperForm<8>(Sd, wd8, 0.0)) / stored_weight_);
-    }
-    if (inverter_wide_share_ != 0.0) {  // the zero-crossing shape as a mix of two widths
-      const double Vw = inverter_wide_share_;
-      const double wd7[7] = {wd[0], wd[1], wd[2], wd[3], (V - Vw) * inv_Ld, 0.0, Vw * inv_Ld};
-      const double wq8[8] = {wq[0], wq[1], wq[2], wq[3], wq[4], (V - Vw) * inv_Lq, 0.0, Vw * inv_Lq};
-      return std::max(0.0, 2.0 * upperForm<8>(Sq, wq8, upperForm<7>(Sd, wd7, 0.0)) / stored_weight_);
     }
     const double f = V != 0.0 ? upperForm<6>(Sq, wq, upperForm<5>(Sd, wd, 0.0))
                               : upperForm<5>(Sq, wq, upperForm<4>(Sd, wd, 0.0));
@@ -220,8 +215,6 @@ class BlockStatistics {
   double inverterBusShare() const { return inverter_bus_share_; }
   /// The samples carried the DC-bus voltage (the bus entries are not all zero).
   bool busVoltageLogged() const { return std::isfinite(bus_reference_); }
-  /// The bus voltage the bus entries are relative to: the first one logged [V] (NaN: none yet).
-  double busReference() const { return bus_reference_; }
   /// Inductances for the stationary hold's bending of the currents within a period [H] (0: none);
   /// set from the data's exact fit (the correction is a fraction of a per cent of the integrals).
   void setHoldInductances(double L_d, double L_q) {
@@ -288,6 +281,13 @@ class BlockStatistics {
   void updateOffsetProjection() const;
   void refreshProjection() const {
     if (projection_stale_) updateOffsetProjection();
+  }
+  /// The (upper-triangle) sums every fitness reads: projected off the sensor errors when they are
+  /// fitted out.
+  std::pair<const ProductD&, const ProductQ&> fitnessSums() const {
+    if (!settings_.sensor_offsets) return {S_d_, S_q_};
+    refreshProjection();
+    return {P_d_, P_q_};
   }
 
   WindowSettings settings_;

@@ -529,9 +529,7 @@ double BlockStatistics::fitnessWithCrossSaturation(const ParameterVector& p) con
   wq[kIntegralInverterBusQ] = inverter_bus_share_ * inv_Lq;
   wq[kDeltaIdInQ] = Ldq * inv_Lq;
   wq[kIntegralOmegaIqInQ] = Ldq * inv_Lq;
-  if (settings_.sensor_offsets) refreshProjection();
-  const ProductD& Sd = settings_.sensor_offsets ? P_d_ : S_d_;
-  const ProductQ& Sq = settings_.sensor_offsets ? P_q_ : S_q_;
+  const auto [Sd, Sq] = fitnessSums();
   const double f = upperForm<kBlockSizeQ>(Sq, wq.data(), upperForm<kBlockSizeD>(Sd, wd.data(), 0.0));
   return std::max(0.0, 2.0 * f / stored_weight_);
 }

@@ -19,7 +19,7 @@ double LogFormat::speedFactor() const {
   return 1.0;
 }
 double LogFormat::currentFactor() const { return (current_unit == "mA" ? 1e-3 : 1.0) * dqFactor(dq_scaling); }
-double LogFormat::voltageFactor() const { return (voltage_unit == "mV" ? 1e-3 : 1.0) * dqFactor(dq_scaling); }
+double LogFormat::voltageFactor() const { return busVoltageFactor() * dqFactor(dq_scaling); }
 double LogFormat::busVoltageFactor() const { return voltage_unit == "mV" ? 1e-3 : 1.0; }
 double LogFormat::angleFactor() const { return angle_unit == "deg" ? M_PI / 180.0 : 1.0; }
 
