@@ -369,7 +369,8 @@ bool BlockStatistics::add(const Sample& s) {
       e.I_d -= base.I_d; e.I_q -= base.I_q; e.OmIq -= base.OmIq; e.OmId -= base.OmId;
       e.U_d -= base.U_d; e.U_q -= base.U_q; e.Om -= base.Om; e.Ustep_d -= base.Ustep_d;
       e.Ustep_q -= base.Ustep_q; e.Inv_d -= base.Inv_d; e.Inv_q -= base.Inv_q;
-      e.Wide_d -= base.Wide_d; e.Wide_q -= base.Wide_q; e.I_cos -= base.I_cos; e.I_sin -= base.I_sin;
+      e.Wide_d -= base.Wide_d; e.Wide_q -= base.Wide_q; e.Bus_d -= base.Bus_d; e.Bus_q -= base.Bus_q;
+      e.I_cos -= base.I_cos; e.I_sin -= base.I_sin;
       e.I_P -= base.I_P; e.I_Q -= base.I_Q; e.W_P -= base.W_P; e.W_Q -= base.W_Q;
     }
   }
