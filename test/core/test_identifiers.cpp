@@ -174,6 +174,14 @@ TEST(IdentifierConfig, BadValuesNameTheKey) {
   } catch (const ConfigError& e) {
     EXPECT_EQ(std::string(e.what()), path + ": key 'bounds.R_s': lower bound must be < upper bound");
   }
+  const std::string gain = test_helpers::writeTemp("bad_gain.yaml", "inverter:\n  shape_observer_gain: 2\n");
+  try {
+    loadIdentifierConfig(gain);
+    ADD_FAILURE();
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()), gain + ": key 'inverter.shape_observer_gain': must be in [0, 1] (0 or 1 = the shape "
+                                            "from the measured currents)");
+  }
   EXPECT_NO_THROW(loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/default.yaml")));
 }
 

@@ -44,6 +44,10 @@ struct WindowSettings {
   double inverter_zero_crossing_current = 0.0;  ///< the inverter error passes zero as tanh(i / this) [A]; 0 = sign
   bool inverter_wide_shape = false;  ///< keep the twice-the-width shape column (the inverter model is on)
   int voltage_delay_samples = 0;           ///< 0: u(t_k) acts on [t_k, t_k+1); 1: on [t_k+1, t_k+2)
+  /// The inverter error's shape takes its phase currents from a current observer (the data's exact
+  /// fit driven by the logged voltages) corrected towards the measured currents by this fraction
+  /// per sample; 0 or 1 = the measured currents (doc/algorithm.md section 8).
+  double inverter_shape_observer_gain = 0.1;
   /// The phase-current sensors' offsets are profiled out of every fit (needs the logged angle): a
   /// constant stator-frame offset o adds o_a (cos theta) + o_b (sin theta) terms to each block
   /// residual, so the statistics are projected off Dcos, Dsin, int cos, int sin (a Schur complement).
@@ -221,6 +225,14 @@ class BlockStatistics {
     hold_L_d_ = L_d;
     hold_L_q_ = L_q;
   }
+  /// Parameters of the inverter shape's current observer (WindowSettings::inverter_shape_observer_gain),
+  /// set from the data's exact fit; the observer also takes the inverter voltage set above.
+  void setShapeObserverModel(const ParameterVector& p) { observer_model_ = p; }
+  std::pair<double, double> observerCurrents() const { return {observer_i_d_, observer_i_q_}; }
+  bool shapeObserverActive() const {
+    return settings_.inverter_shape_observer_gain > 0 && settings_.inverter_shape_observer_gain < 1 &&
+           observer_model_[kLd] > 0 && observer_model_[kLq] > 0;
+  }
   /// Known cross-saturation inductance L_dq and incremental q inductance L_qq [H] (0: linear model);
   /// set from the data's exact fit when magnetics.cross_saturation is on.
   void setCrossSaturation(double L_dq, double L_qq) { cross_L_dq_ = L_dq; cross_L_qq_ = L_qq; }
@@ -235,6 +247,8 @@ class BlockStatistics {
   std::uint64_t blocks() const { return blocks_; }          ///< blocks added since reset
   int blockSamples() const { return block_samples_; }       ///< M
   double nominalPeriod() const { return nominal_period_; }  ///< [s]
+  /// WindowSettings::inverter_zero_crossing_current [A].
+  double inverterZeroCrossingCurrent() const { return settings_.inverter_zero_crossing_current; }
   double blockDuration() const { return block_samples_ * nominal_period_; }  ///< [s]
   double forgettingTimeConstant() const { return forgetting_time_constant_; }  ///< in use [s]
   /// Forgotten means of z z^T (full symmetric): sum lambda^n z z^T / sum lambda^n.
@@ -275,6 +289,9 @@ class BlockStatistics {
   void inverterShapeIntegral(const Cumulative& previous, const Cumulative& current, const Sample& s, double dt,
                              double width, const std::array<double, 3>& mid_bend, double& int_d,
                              double& int_q) const;
+  /// The phase currents at the sample from the inverter shape's current observer (advances its state).
+  std::array<double, 3> observedPhaseCurrents(const Cumulative& previous, const Cumulative& current,
+                                              const Sample& s, double dt);
   void rescale();
   /// The projection is computed when a fit first reads it after new data (RLS, the EKF and the
   /// exact fit read it every few hundred samples, the swarm's fitness every sample).
@@ -322,6 +339,8 @@ class BlockStatistics {
   double inverter_voltage_ = 0.0, inverter_wide_share_ = 0.0, inverter_bus_share_ = 0.0;
   double bus_reference_ = std::numeric_limits<double>::quiet_NaN();
   double hold_L_d_ = 0.0, hold_L_q_ = 0.0;
+  ParameterVector observer_model_{};          // R_s, L_d, L_q, psi_f of the shape's observer (0: none yet)
+  double observer_i_d_ = 0.0, observer_i_q_ = 0.0;  // its currents at the last sample [A]
   double cross_L_dq_ = 0.0, cross_L_qq_ = 0.0;
   bool have_previous_block_ = false;
   ProductD long_d_ = ProductD::Zero();

@@ -135,6 +135,10 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   const std::string model = y.oneOf("inverter.model", "none", {"none", "estimate"});
   c.inverter.estimate_voltage = model == "estimate";
   c.window.inverter_zero_crossing_current = y.nonNegative("inverter.zero_crossing_current", 0.0, " [A] (0 = sign)");
+  c.window.inverter_shape_observer_gain = y.nonNegative("inverter.shape_observer_gain", c.window.inverter_shape_observer_gain,
+                                                        " (0 or 1 = the measured currents)");
+  if (c.window.inverter_shape_observer_gain > 1)
+    y.fail("inverter.shape_observer_gain", "must be in [0, 1] (0 or 1 = the shape from the measured currents)");
   c.inverter.max_relative_uncertainty =
       y.positive("inverter.max_relative_uncertainty", c.inverter.max_relative_uncertainty);
   c.window.sensor_offsets = y.oneOf("current_sensors.offsets", "none", {"none", "estimate"}) == "estimate";

@@ -236,6 +236,15 @@ void OnlineIdentifier::adoptExactFitTerms(const FitCheck& fit) {
                       std::isfinite(fit.inverter_wide_share) && std::isfinite(fit.inverter_bus_share);
   stats_.setInverterVoltage(usable ? V : 0.0, usable ? fit.inverter_wide_share : 0.0,
                             usable ? fit.inverter_bus_share : 0.0);
+  // The inverter shape's current observer runs the data's model: once all four are determined to
+  // 1 % by a fit that is consistent. A fit that is not drops it, and the shape takes the measured
+  // currents again: an observer run with a wrong model feeds the fit wrong shapes, and the fit
+  // would never become consistent again to correct it (with a 10 % limit that locked 11 of 30
+  // robot-joint swarm runs into a poor fit).
+  bool all = usable && fit.consistent;
+  for (int p = 0; p < kParameterCount; ++p) all = all && fitDetermines(fit, p, 0.01);
+  if (all) stats_.setShapeObserverModel(fit.optimum);
+  else if (!fit.consistent) stats_.setShapeObserverModel({});
 }
 
 bool OnlineIdentifier::refreshSearchBox() {
