@@ -289,9 +289,16 @@ class BlockStatistics {
   void inverterShapeIntegral(const Cumulative& previous, const Cumulative& current, const Sample& s, double dt,
                              double width, const std::array<double, 3>& mid_bend, double& int_d,
                              double& int_q) const;
-  /// The phase currents at the sample from the inverter shape's current observer (advances its state).
-  std::array<double, 3> observedPhaseCurrents(const Cumulative& previous, const Cumulative& current,
-                                              const Sample& s, double dt);
+  /// One period of the inverter shape's current observer (advances its state): its phase currents
+  /// at the sample, the period's integrals of the narrow and wide shapes along its path, and its
+  /// currents' integrals less the trapezoid of the path's ends (what chords of the currents miss).
+  struct ObservedPeriod {
+    bool valid = false;
+    std::array<double, 3> phase{};
+    double narrow_d = 0.0, narrow_q = 0.0, wide_d = 0.0, wide_q = 0.0;  // [s]
+    double missed_d = 0.0, missed_q = 0.0;                              // [A s]
+  };
+  ObservedPeriod observePeriod(const Cumulative& previous, const Sample& s, double dt, double angle_increment);
   void rescale();
   /// The projection is computed when a fit first reads it after new data (RLS, the EKF and the
   /// exact fit read it every few hundred samples, the swarm's fitness every sample).

@@ -288,7 +288,7 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   // 0.0031 z^2 (the robot joint's bias at z = 0.83, scaled as z^2); the other three add nothing.
   // Without a width (a sharp sign change) the crossing is placed exactly and nothing is added.
   const double width = stats.inverterZeroCrossingCurrent();
-  if (out.inverter_modelled && width > 0 && L > 0) {
+  if (out.inverter_modelled && width > 0 && L > 0 && !stats.shapeObserverActive()) {
     const double slope = std::abs(out.inverter_voltage - out.inverter_wide_share) / width +
                          std::abs(out.inverter_wide_share) / (2.0 * width);
     const double z = stats.nominalPeriod() * slope / L;

@@ -142,8 +142,8 @@ void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulativ
   int_q = dt * shape.y;
 }
 
-std::array<double, 3> BlockStatistics::observedPhaseCurrents(const Cumulative& p, const Cumulative& c,
-                                                             const Sample& s, double dt) {
+BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative& p, const Sample& s, double dt,
+                                                              double angle_increment) {
   // The measured currents' noise would enter the shape where a phase current crosses zero (a slope
   // of V / w, about 1 ohm on the robot joint, twelve times its R_s), inside every block where the
   // noise level does not see it, and bias R_s and L_d as an errors-in-variables regressor. Below the
@@ -156,37 +156,46 @@ std::array<double, 3> BlockStatistics::observedPhaseCurrents(const Cumulative& p
   const double width = settings_.inverter_zero_crossing_current;
   const double V_narrow = inverter_voltage_ - inverter_wide_share_ + inverter_bus_share_ * p.bus_ratio;
   const double V_wide = inverter_wide_share_;
-  // The inverter error at currents (d, q) and an angle (its cos, sin), the fitted mix, and its slope
-  // d(error)/d(current) (2x2, row = error axis) = R(-theta) (2/3) sum_k f'(i_k) r_k r_k^T R(theta),
-  // r_k the phases' rows of the inverse Clarke transform.
-  struct ErrorAndSlope {
-    double e_d, e_q;
+  // The inverter error at currents (d, q) and an angle (its cos, sin): the fitted mix, its two
+  // shapes (the d-q images of tanh over w and over 2w) and its slope d(error)/d(current) (2x2, row =
+  // error axis) = R(-theta) (2/3) sum_k f'(i_k) r_k r_k^T R(theta), r_k the phases' rows of the
+  // inverse Clarke transform.
+  struct Node {
+    double e_d, e_q, narrow_d, narrow_q, wide_d, wide_q;
     double J[2][2];
   };
-  const auto error = [&](double d, double q, double cos_t, double sin_t) {
+  const auto evaluate = [&](double d, double q, double cos_t, double sin_t) {
     const std::array<double, 3> i = inverseClarke({cos_t * d - sin_t * q, sin_t * d + cos_t * q});
     const double wide = width > 0 ? 2.0 * width : 0.02 * std::sqrt(d * d + q * q) + 1e-12;
     static const double rows[3][2] = {{1.0, 0.0}, {-0.5, 0.8660254037844386}, {-0.5, -0.8660254037844386}};
-    std::array<double, 3> e{};
+    std::array<double, 3> narrow{}, wide_shape{};
     double M[2][2] = {{0.0, 0.0}, {0.0, 0.0}};
     for (std::size_t k = 0; k < 3; ++k) {
       const double tw = std::tanh(i[k] / wide);
+      wide_shape[k] = tw;
       double slope = V_wide * (1.0 - tw * tw) / wide;
-      e[k] = V_wide * tw;
       if (width > 0) {
         const double tn = std::tanh(i[k] / width);
-        e[k] += V_narrow * tn;
+        narrow[k] = tn;
         slope += V_narrow * (1.0 - tn * tn) / width;
       } else {
-        e[k] += V_narrow * sign(i[k]);
+        narrow[k] = sign(i[k]);
       }
       for (int a = 0; a < 2; ++a)
         for (int b = 0; b < 2; ++b) M[a][b] += (2.0 / 3.0) * slope * rows[k][a] * rows[k][b];
     }
-    const Vec2 ab = clarke(e[0], e[1], e[2]);
-    ErrorAndSlope out;
-    out.e_d = cos_t * ab.x + sin_t * ab.y;
-    out.e_q = -sin_t * ab.x + cos_t * ab.y;
+    const auto toDq = [&](const std::array<double, 3>& x) {
+      const Vec2 ab = clarke(x[0], x[1], x[2]);
+      return Vec2{cos_t * ab.x + sin_t * ab.y, -sin_t * ab.x + cos_t * ab.y};
+    };
+    Node out;
+    const Vec2 n = toDq(narrow), w = toDq(wide_shape);
+    out.narrow_d = n.x;
+    out.narrow_q = n.y;
+    out.wide_d = w.x;
+    out.wide_q = w.y;
+    out.e_d = V_narrow * n.x + V_wide * w.x;
+    out.e_q = V_narrow * n.y + V_wide * w.y;
     // R(-theta) M R(theta), R(theta) = [[c, -s], [s, c]].
     const double MR[2][2] = {{M[0][0] * cos_t + M[0][1] * sin_t, -M[0][0] * sin_t + M[0][1] * cos_t},
                              {M[1][0] * cos_t + M[1][1] * sin_t, -M[1][0] * sin_t + M[1][1] * cos_t}};
@@ -196,60 +205,98 @@ std::array<double, 3> BlockStatistics::observedPhaseCurrents(const Cumulative& p
     out.J[1][1] = -sin_t * MR[0][1] + cos_t * MR[1][1];
     return out;
   };
-  const double dU_d = c.U_d - p.U_d, dU_q = c.U_q - p.U_q, dtheta = c.Om - p.Om;
-  // With the stationary hold the currents bend within the period (the held vector turns): the
-  // trapezoids of the current terms miss -(dt^3 / 12) i'' (as the block integrals, above). Without
-  // it the observer's d current drifted 5-10 mA (0.8 mV of d voltage per period, through R_s and
-  // the 1 / gain memory) and L_q read 0.3 % low after a load step on the robot joint.
-  double missed_d = 0.0, missed_q = 0.0, bend_d = 0.0, bend_q = 0.0;  // bend: at mid-period, off the chord
+  // Near a zero crossing the error acts as a resistance V / w, so where T V / (w L) is not small a
+  // crossing current settles on a curve within the period, not on the chord between the samples
+  // (on the chords L_d read 0.22-0.25 % high on the robot joint with noise-free currents). The
+  // period is therefore followed in substeps of T V / (w L) <= 0.3, each an implicit step solved by
+  // Newton's method: the currents by the trapezoid, the error by Simpson's rule on the substep's
+  // chord (the error's slope makes even a substep stiff; fixed-point corrections did not converge).
+  // Along that path the shapes are integrated, and so are the currents: the block integrals of the
+  // measured currents take the path's departure from its own chord (the held vector's bend
+  // included).
+  const double slope_scale = std::abs(V_narrow) / std::max(width, 1e-3) + std::abs(V_wide) / std::max(2.0 * width, 1e-3);
+  const int n = std::clamp(static_cast<int>(std::ceil(dt * slope_scale / std::min(L_d, L_q) / 0.3)), 1, 16);
+  const double h = dt / n, dtheta = angle_increment / n;
+  const double cr = std::cos(dtheta), sr = std::sin(dtheta), crh = std::cos(0.5 * dtheta), srh = std::sin(0.5 * dtheta);
+  // The voltage over [t_a, t_b] of the period: the held vector, turning by -omega_e t in the rotor
+  // frame with the stationary hold (S(t) = sin(w t) / w, C(t) = (1 - cos(w t)) / w), else constant.
+  const double w = p.omega_e;
+  const auto S = [&](double t) { return std::abs(w * t) > 1e-6 ? std::sin(w * t) / w : t; };
+  const auto C = [&](double t) { return std::abs(w * t) > 1e-6 ? (1.0 - std::cos(w * t)) / w : 0.5 * w * t * t; };
+  // Within a substep the held vector's bend of the currents, as in the block integrals.
+  double missed_d = 0.0, missed_q = 0.0, bend_d = 0.0, bend_q = 0.0;
   if (settings_.stationary_hold) {
-    const double k = dt * dt * dt / 12.0 * p.omega_e, m = -dt * dt / 8.0 * p.omega_e;
+    const double k = h * h * h / 12.0 * w, m = -h * h / 8.0 * w;
     missed_d = -k * p.applied_q / L_d;
     missed_q = k * p.applied_d / L_q;
     bend_d = m * p.applied_q / L_d;
     bend_q = -m * p.applied_d / L_q;
   }
-  const double d0 = observer_i_d_, q0 = observer_i_q_;
-  const double cp = std::cos(p.theta_e), sp = std::sin(p.theta_e), cs = std::cos(s.theta_e), ss = std::sin(s.theta_e);
-  const ErrorAndSlope e0 = error(d0, q0, cp, sp);
-  const double mid_angle = p.theta_e + 0.5 * dtheta;
-  const double cm = std::cos(mid_angle), sm = std::sin(mid_angle);
-  // The period's step, implicit: the currents' integrals by the trapezoid (plus the bend), the
-  // inverter error's by Simpson's rule on the chord's midpoint, as the block integrals. Near a zero
-  // crossing the error acts as a resistance V / w (about 1 ohm on the robot joint), so the step is
-  // stiff (dt V / (w L) = 1.4 there): a fixed-point iteration did not converge (one, two and three
-  // corrections read L_d +1.0, +0.1 and +0.4 %), Newton's method on the 2x2 step does.
-  // Residual G(x1) = x1 - x0 - increment(x1); its Jacobian I - d increment / d x1.
-  double d = d0, q = q0;
-  for (int iteration = 0; iteration < 4; ++iteration) {
-    const ErrorAndSlope em = error(0.5 * (d0 + d) + bend_d, 0.5 * (q0 + q) + bend_q, cm, sm);
-    const ErrorAndSlope e1 = error(d, q, cs, ss);
-    const double md = 0.5 * (d0 + d), mq = 0.5 * (q0 + q);
-    const double ed = (e0.e_d + 4.0 * em.e_d + e1.e_d) / 6.0, eq = (e0.e_q + 4.0 * em.e_q + e1.e_q) / 6.0;
-    const double G_d = d - d0 - (dU_d - R * (dt * md + missed_d) + L_q * (dtheta * mq + p.omega_e * missed_q) - ed * dt) / L_d;
-    const double G_q = q - q0 - (dU_q - R * (dt * mq + missed_q) - L_d * (dtheta * md + p.omega_e * missed_d) -
-                                 psi_f * dtheta - eq * dt) / L_q;
-    // d ed / d x1 = (4 J_mid / 2 + J_1) / 6
-    double slope[2][2];
-    for (int a = 0; a < 2; ++a)
-      for (int b = 0; b < 2; ++b) slope[a][b] = (2.0 * em.J[a][b] + e1.J[a][b]) / 6.0 * dt;
-    const double A00 = 1.0 + (0.5 * R * dt + slope[0][0]) / L_d, A01 = (-0.5 * L_q * dtheta + slope[0][1]) / L_d;
-    const double A10 = (0.5 * L_d * dtheta + slope[1][0]) / L_q, A11 = 1.0 + (0.5 * R * dt + slope[1][1]) / L_q;
-    const double det = A00 * A11 - A01 * A10;
-    if (!(std::abs(det) > 1e-12)) break;
-    const double step_d = (A11 * G_d - A01 * G_q) / det, step_q = (-A10 * G_d + A00 * G_q) / det;
-    d -= step_d;
-    q -= step_q;
-    if (std::abs(step_d) + std::abs(step_q) < 1e-9) break;
+  const double d_start = observer_i_d_, q_start = observer_i_q_;
+  double d0 = d_start, q0 = q_start;
+  double cos0 = std::cos(p.theta_e), sin0 = std::sin(p.theta_e);
+  Node e0 = evaluate(d0, q0, cos0, sin0);
+  ObservedPeriod out;
+  out.valid = true;
+  double path_d = 0.0, path_q = 0.0;  // the currents' integrals along the path [A s]
+  for (int j = 0; j < n; ++j) {
+    double dU_d = h * p.applied_d, dU_q = h * p.applied_q;
+    if (settings_.stationary_hold) {
+      const double dS = S((j + 1) * h) - S(j * h), dC = C((j + 1) * h) - C(j * h);
+      dU_d = dS * p.applied_d + dC * p.applied_q;
+      dU_q = dS * p.applied_q - dC * p.applied_d;
+    }
+    const double cm = cos0 * crh - sin0 * srh, sm = sin0 * crh + cos0 * srh;
+    const double c1 = cos0 * cr - sin0 * sr, s1 = sin0 * cr + cos0 * sr;
+    double d = d0, q = q0;
+    Node em = e0, e1 = e0;
+    for (int iteration = 0; iteration < 8; ++iteration) {
+      em = evaluate(0.5 * (d0 + d) + bend_d, 0.5 * (q0 + q) + bend_q, cm, sm);
+      e1 = evaluate(d, q, c1, s1);
+      const double md = 0.5 * (d0 + d), mq = 0.5 * (q0 + q);
+      const double ed = (e0.e_d + 4.0 * em.e_d + e1.e_d) / 6.0, eq = (e0.e_q + 4.0 * em.e_q + e1.e_q) / 6.0;
+      const double G_d = d - d0 - (dU_d - R * (h * md + missed_d) + L_q * (dtheta * mq + w * missed_q) - ed * h) / L_d;
+      const double G_q = q - q0 - (dU_q - R * (h * mq + missed_q) - L_d * (dtheta * md + w * missed_d) -
+                                   psi_f * dtheta - eq * h) / L_q;
+      if (std::abs(G_d) + std::abs(G_q) < 1e-7) break;  // [A]: the evaluations above are this state's
+      // d ed / d x1 = (4 J_mid / 2 + J_1) / 6
+      double slope[2][2];
+      for (int a = 0; a < 2; ++a)
+        for (int b = 0; b < 2; ++b) slope[a][b] = (2.0 * em.J[a][b] + e1.J[a][b]) / 6.0 * h;
+      const double A00 = 1.0 + (0.5 * R * h + slope[0][0]) / L_d, A01 = (-0.5 * L_q * dtheta + slope[0][1]) / L_d;
+      const double A10 = (0.5 * L_d * dtheta + slope[1][0]) / L_q, A11 = 1.0 + (0.5 * R * h + slope[1][1]) / L_q;
+      const double det = A00 * A11 - A01 * A10;
+      if (!(std::abs(det) > 1e-12)) break;
+      const double step_d = (A11 * G_d - A01 * G_q) / det, step_q = (-A10 * G_d + A00 * G_q) / det;
+      d -= step_d;
+      q -= step_q;
+    }
+    out.narrow_d += h / 6.0 * (e0.narrow_d + 4.0 * em.narrow_d + e1.narrow_d);
+    out.narrow_q += h / 6.0 * (e0.narrow_q + 4.0 * em.narrow_q + e1.narrow_q);
+    out.wide_d += h / 6.0 * (e0.wide_d + 4.0 * em.wide_d + e1.wide_d);
+    out.wide_q += h / 6.0 * (e0.wide_q + 4.0 * em.wide_q + e1.wide_q);
+    path_d += 0.5 * h * (d0 + d) + missed_d;
+    path_q += 0.5 * h * (q0 + q) + missed_q;
+    d0 = d;
+    q0 = q;
+    cos0 = c1;
+    sin0 = s1;
+    e0 = e1;
   }
+  out.missed_d = path_d - 0.5 * dt * (d_start + d0);
+  out.missed_q = path_q - 0.5 * dt * (q_start + q0);
   const double gain = settings_.inverter_shape_observer_gain;
-  observer_i_d_ = d + gain * (s.i_d - d);
-  observer_i_q_ = q + gain * (s.i_q - q);
-  if (!(std::isfinite(observer_i_d_) && std::isfinite(observer_i_q_))) {
+  observer_i_d_ = d0 + gain * (s.i_d - d0);
+  observer_i_q_ = q0 + gain * (s.i_q - q0);
+  if (!(std::isfinite(observer_i_d_) && std::isfinite(observer_i_q_) && std::isfinite(out.narrow_d + out.narrow_q) &&
+        std::isfinite(out.wide_d + out.wide_q) && std::isfinite(out.missed_d + out.missed_q))) {
     observer_i_d_ = s.i_d;
     observer_i_q_ = s.i_q;
+    out = ObservedPeriod{};
   }
-  return inverseClarke({cs * observer_i_d_ - ss * observer_i_q_, ss * observer_i_d_ + cs * observer_i_q_});
+  const double cs = std::cos(s.theta_e), ss = std::sin(s.theta_e);
+  out.phase = inverseClarke({cs * observer_i_d_ - ss * observer_i_q_, ss * observer_i_d_ + cs * observer_i_q_});
+  return out;
 }
 
 namespace {
@@ -336,8 +383,24 @@ bool BlockStatistics::add(const Sample& s) {
       c.U_d = p.U_d + dt * p.applied_d;  // zero-order hold over [t_j, t_j+1) in the rotor frame
       c.U_q = p.U_q + dt * p.applied_q;
     }
+    // The inverter shape's observer (observePeriod): where it runs, its path gives the shapes'
+    // integrals and what the chords of the currents miss (the held vector's bend included).
+    ObservedPeriod observed;
+    if (shapeObserverActive() && std::isfinite(p.theta_e) && std::isfinite(s.theta_e)) {
+      observed = observePeriod(p, s, dt, c.Om - p.Om);
+    } else {
+      observer_i_d_ = s.i_d;
+      observer_i_q_ = s.i_q;
+    }
     std::array<double, 3> mid_bend{};  // the phase currents' departure from the chord at mid-period
-    if (settings_.stationary_hold && hold_L_d_ > 0 && hold_L_q_ > 0) {
+    if (observed.valid) {
+      const double omega = (c.Om - p.Om) / dt;
+      c.I_d += observed.missed_d;
+      c.I_q += observed.missed_q;
+      c.OmId += omega * observed.missed_d;
+      c.OmIq += omega * observed.missed_q;
+      c.phase = observed.phase;
+    } else if (settings_.stationary_hold && hold_L_d_ > 0 && hold_L_q_ > 0) {
       // The held vector turns by -omega_e t within the period, so the d voltage ramps by
       // omega_e t u_q (the q voltage by -omega_e t u_d) and the currents bend: the trapezoid misses
       // -(dt^3 / 12) i'' of each current integral, i_d'' = omega_e u_q / L_d, i_q'' = -omega_e u_d / L_q
@@ -369,15 +432,14 @@ bool BlockStatistics::add(const Sample& s) {
     }
     c.Ustep_d = p.Ustep_d + dt * (p.applied_d - p.applied_prev_d);
     c.Ustep_q = p.Ustep_q + dt * (p.applied_q - p.applied_prev_q);
-    if (shapeObserverActive() && std::isfinite(p.theta_e) && std::isfinite(s.theta_e)) {
-      c.phase = observedPhaseCurrents(p, c, s, dt);
-    } else {
-      observer_i_d_ = s.i_d;
-      observer_i_q_ = s.i_q;
-    }
     double inv_d = 0.0, inv_q = 0.0;
     const double width = settings_.inverter_zero_crossing_current;
-    inverterShapeIntegral(p, c, s, dt, width, mid_bend, inv_d, inv_q);
+    if (observed.valid) {
+      inv_d = observed.narrow_d;
+      inv_q = observed.narrow_q;
+    } else {
+      inverterShapeIntegral(p, c, s, dt, width, mid_bend, inv_d, inv_q);
+    }
     c.Inv_d = p.Inv_d + inv_d;
     c.Inv_q = p.Inv_q + inv_q;
     // The dead-time part of the error follows the bus voltage of the period (logged at its start):
@@ -388,7 +450,12 @@ bool BlockStatistics::add(const Sample& s) {
     // second shape of the mix the zero-crossing shape is fitted as (nobody logs the true width).
     if (settings_.inverter_wide_shape) {
       const double wide = width > 0 ? 2.0 * width : 0.02 * std::sqrt(c.i_d * c.i_d + c.i_q * c.i_q) + 1e-12;
-      inverterShapeIntegral(p, c, s, dt, wide, mid_bend, inv_d, inv_q);
+      if (observed.valid) {
+        inv_d = observed.wide_d;
+        inv_q = observed.wide_q;
+      } else {
+        inverterShapeIntegral(p, c, s, dt, wide, mid_bend, inv_d, inv_q);
+      }
       c.Wide_d = p.Wide_d + inv_d;
       c.Wide_q = p.Wide_q + inv_q;
     }
