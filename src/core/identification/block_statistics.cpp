@@ -175,7 +175,7 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
       wide_shape[k] = tw;
       double slope = V_wide * (1.0 - tw * tw) / wide;
       if (width > 0) {
-        const double tn = std::tanh(i[k] / width);
+        const double tn = 2.0 * tw / (1.0 + tw * tw);  // tanh(i / w) from tanh(i / 2w): one tanh, not two
         narrow[k] = tn;
         slope += V_narrow * (1.0 - tn * tn) / width;
       } else {
