@@ -52,8 +52,8 @@ struct FitCheck {
   std::string likely_cause;        ///< one line when the fit is poor and a cause fits the data
   double sampling_floor = 0.0;     ///< (omega_e T_s)^2: relative error of sampled integrals at speed [-]
   /// c z^2, z = T_s V / (w L): the inverter error's zero crossings within a period, where the
-  /// currents are not the chords the shape integrals take; added to L_d's stated uncertainty
-  /// (doc/algorithm.md section 8) [-]
+  /// currents are not the chords between the samples; added to L_d's stated uncertainty while the
+  /// shape observer, which follows them, does not run (doc/algorithm.md section 8) [-]
   double crossing_floor = 0.0;
   bool inverter_modelled = false;  ///< the fit estimated an inverter voltage error V with the four
   double inverter_voltage = 0.0;   ///< V [V] (pole-voltage error amplitude, V_dc t_dead f_sw + drop)

@@ -280,13 +280,14 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   out.sampling_floor = std::isfinite(bend) ? wT * wT * bend : 0.0;
   // Near a zero crossing the inverter error acts as a resistance, V / w for the fitted mix: where
   // z = T_s V / (w L) is not small, a phase current crossing zero within a period settles on a
-  // curve, not on the chord between the samples that the shape integrals take. Measured on the
+  // curve, not on the chord between the samples. The shape observer follows that curve
+  // (BlockStatistics::observePeriod); where it does not run, the integrals take the chords. Measured on the
   // robot joint with noise-free currents and the inverter's own width (the stationary hold or not):
   // L_d +0.22-0.25 % at z = 0.83, 0.01 % at a quarter of z; on wc1_realistic L_d +0.09 % at
   // z = 0.78 (+0.18 % with the config's 0.3 A for its 0.2 A). R_s, L_q and psi_f moved by at most
   // 0.06 %, under the smallest stated uncertainty (0.2 %). Decided: L_d's stated uncertainty adds
-  // 0.0031 z^2 (the robot joint's bias at z = 0.83, scaled as z^2); the other three add nothing.
-  // Without a width (a sharp sign change) the crossing is placed exactly and nothing is added.
+  // 0.0031 z^2 (the robot joint's bias at z = 0.83, scaled as z^2) while the observer does not run;
+  // the other three add nothing. Without a width (a sharp sign change) nothing is added.
   const double width = stats.inverterZeroCrossingCurrent();
   if (out.inverter_modelled && width > 0 && L > 0 && !stats.shapeObserverActive()) {
     const double slope = std::abs(out.inverter_voltage - out.inverter_wide_share) / width +
