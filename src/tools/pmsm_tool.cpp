@@ -230,7 +230,9 @@ struct MonitorResult {
 /// and the map of the motor they make (doc/algorithm.md section 12).
 struct AlongRunResult {
   std::array<int, kParameterCount> identified{}, wrong{};  ///< estimates identified; of them > 2 % off
+  std::array<int, kParameterCount> outside_stated{};        ///< of them |error| > their stated uncertainty
   ParameterVector worst{};                                  ///< largest |error| of an identified one [%]
+  ParameterVector worst_over_stated{};                      ///< largest |error| / stated uncertainty [-]
   int map_cells = 0, map_cells_complete = 0;                ///< cells; with L_d, L_q, psi_f identified
   ParameterVector map_worst{};  ///< largest |error| of a cell's latest identified value vs the truth then [%]
   std::shared_ptr<const FluxTable> map_table;               ///< exported map (null when none)
@@ -312,6 +314,9 @@ RunResult runOne(const std::vector<SimulatedSample>& data, IdentifierConfig conf
       ++r.along.identified[p];
       r.along.wrong[p] += !(error <= 2.0);
       r.along.worst[p] = std::max(r.along.worst[p], std::isfinite(error) ? error : INFINITY);
+      const double over = error / (100.0 * e.relative_uncertainty[p]);
+      r.along.outside_stated[p] += !(over <= 1.0);
+      r.along.worst_over_stated[p] = std::max(r.along.worst_over_stated[p], std::isfinite(over) ? over : INFINITY);
     }
     const int cell = map.add(e);
     if (cell >= 0) {
@@ -546,6 +551,19 @@ void printAlongRun(const std::vector<std::string>& methods, const std::vector<st
       std::printf("%-24s", buf);
     }
   }
+  std::printf("\n  %-20s", "outside stated");
+  for (std::size_t m = 0; m < methods.size(); ++m) {
+    int outside = 0;
+    double worst = 0.0;
+    for (const RunResult& r : results[m])
+      for (int p = 0; p < kParameterCount; ++p) {
+        outside += r.along.outside_stated[p];
+        if (r.along.identified[p]) worst = std::max(worst, r.along.worst_over_stated[p]);
+      }
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%d [%.2f]", outside, worst);
+    std::printf("%-24s", buf);
+  }
   std::printf("\n  %-20s", "map cells (full)");
   for (std::size_t m = 0; m < methods.size(); ++m) {
     std::vector<double> cells, complete;
@@ -586,6 +604,8 @@ void printAlongRun(const std::vector<std::string>& methods, const std::vector<st
     }
   }
   std::printf("\n(wrong/ident.: estimates reported identified and > 2 %% off / reported identified, all seeds [worst |error|];"
+              "\n outside stated: identified estimates, all four parameters, whose |error| exceeds their stated uncertainty"
+              " [largest ratio];"
               "\n map cells: cells of operating points (full: with L_d, L_q, psi_f identified) median [fewest]; worst cell: a cell's latest"
               "\n identified value against the truth when it was filed, median over seeds [worst]%s)\n",
               roundtrip ? ";\n round trip: RMS current difference, the same run re-simulated with the learnt map, median [worst]; "
@@ -808,6 +828,8 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
         along["identified"][name] = r.along.identified[p];
         along["wrong"][name] = r.along.wrong[p];
         along["worst_error_percent"][name] = numberOrNull(r.along.identified[p] ? r.along.worst[p] : NAN);
+        along["outside_stated"][name] = r.along.outside_stated[p];
+        along["worst_error_over_stated"][name] = numberOrNull(r.along.identified[p] ? r.along.worst_over_stated[p] : NAN);
         map_json["worst_cell_error_percent"][name] = numberOrNull(r.along.map_worst[p]);
       }
       along["period"] = kEstimatePeriod;
