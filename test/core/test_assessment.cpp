@@ -84,9 +84,12 @@ TEST(AnyMotor, TheEndsOfTheSupportedRange) {
         const Estimate e = identify(samplesOf(data), method, {}, seed);
         for (int p = 0; p < kParameterCount; ++p) {
           const double err = std::abs(errorPercent(e.parameters[p], data.back().truth[p]));
-          if (e.identifiable[p]) EXPECT_LT(err, 1.0) << file << " " << method << " " << parameterNames()[p];
-          if (std::string(file) == "small_fast.yaml" || p == kLq || p == kPsiF)
+          if (e.identifiable[p]) {
+            EXPECT_LT(err, 1.0) << file << " " << method << " " << parameterNames()[p];
+          }
+          if (std::string(file) == "small_fast.yaml" || p == kLq || p == kPsiF) {
             EXPECT_TRUE(e.identifiable[p]) << file << " " << method << " " << e.reason[p];
+          }
         }
       }
     }
@@ -349,8 +352,9 @@ TEST(Baselines, AStandstillMinuteLeavesRlsAndEkfWorking) {
     const Estimate e = id->estimate();
     for (int p = 0; p < kParameterCount; ++p) {
       EXPECT_TRUE(std::isfinite(e.parameters[p])) << method;
-      if (std::string(method) == "rls")
+      if (std::string(method) == "rls") {
         EXPECT_LT(std::abs(errorPercent(e.parameters[p], again.back().truth[p])), 1.0) << parameterNames()[p];
+      }
     }
   }
 }
@@ -855,9 +859,10 @@ TEST(Wls, NoMethodEndsBelowTheExactOptimum) {
   for (const char* method : {"fbdapso", "sapso", "pso", "rls", "ekf"}) {
     const Estimate e = identify(samplesOf(data), method);
     EXPECT_GE(e.fitness, reference.fitness * (1 - 1e-9)) << method;
-    if (std::string(method) != "ekf")
+    if (std::string(method) != "ekf") {
       for (int p = 0; p < kParameterCount; ++p)
         EXPECT_LT(std::abs(errorPercent(e.parameters[p], reference.parameters[p])), 0.5) << method << " " << parameterNames()[p];
+    }
   }
 }
 

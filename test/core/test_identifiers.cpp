@@ -46,8 +46,9 @@ TEST_P(EachMethod, RecoversTheParametersOfANoiseFreeRun) {
     EXPECT_NEAR(errorPercent(e.parameters[p], data.back().truth[p]), 0.0, tol)
         << method << " " << parameterNames()[p] << " = " << e.parameters[p];
   EXPECT_EQ(e.counters.used, data.size());
-  if (std::string(method) != "ekf")
+  if (std::string(method) != "ekf") {
     for (int p = 0; p < kParameterCount; ++p) EXPECT_TRUE(e.identifiable[p]) << method << " " << e.reason[p];
+  }
 }
 // Tolerances from this setup over seeds 1-30 (largest |error| of the four parameters, worst seed):
 // FBDAPSO 0.069-0.088 %, SAPSO 0.24-0.32 % (its hot start of every cycle leaves the last cycle's
@@ -352,9 +353,10 @@ TEST(Saturation, NoParameterIsConfidentlyWrongAtAnyLoad) {
       const Estimate e = identify(data, method);
       EXPECT_FALSE(e.identifiable[kRs]) << load << " A " << method << ": R_s " << e.parameters[kRs];
       for (int p = 0; p < kParameterCount; ++p)
-        if (e.identifiable[p])
+        if (e.identifiable[p]) {
           EXPECT_NEAR(e.parameters[p] / data.back().truth[p], 1.0, 0.02)
               << load << " A " << method << " " << parameterNames()[p];
+        }
     }
   }
 }
@@ -394,14 +396,16 @@ TEST(Saturation, CrossSaturationIsNamedAndThenModelled) {
     EXPECT_TRUE(e.identifiable[kLd] || (e.status[kLd] == ParameterStatus::NotExcited && e.relative_uncertainty[kLd] < 0.015))
         << e.reason[kLd];
     for (int p = 0; p < kParameterCount; ++p)
-      if (e.identifiable[p])
+      if (e.identifiable[p]) {
         EXPECT_NEAR(e.parameters[p] / data.back().truth[p], 1.0, 0.02) << load << " A " << parameterNames()[p];
+      }
     for (const char* method : {"fbdapso", "rls", "ekf"}) {  // the others: nothing confidently wrong
       const Estimate m = identify(data, method, 1, c);
       for (int p = 0; p < kParameterCount; ++p)
-        if (m.identifiable[p])
+        if (m.identifiable[p]) {
           EXPECT_NEAR(m.parameters[p] / data.back().truth[p], 1.0, 0.02) << load << " A " << method << " "
                                                                            << parameterNames()[p];
+        }
     }
   }
 }
