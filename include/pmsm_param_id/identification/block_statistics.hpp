@@ -57,6 +57,15 @@ struct WindowSettings {
   bool sensor_gains = false;
 };
 
+/// The inverter error as the block model carries it: the amplitude V split over the shapes' entries.
+/// The shape over the zero-crossing current w carries V - V_wide, the one over 2w V_wide, and the
+/// bus entry ((v_dc / v_ref - 1) times the shape over w) V_bus (doc/algorithm.md section 8). One
+/// definition for the fitness, the compensated windows, the shape observer and the crossing term.
+struct InverterMix {
+  double narrow = 0.0, wide = 0.0, bus = 0.0;  ///< [V]
+  static InverterMix of(double V, double V_wide, double V_bus) { return {V - V_wide, V_wide, V_bus}; }
+};
+
 /// Entries of the current-sensor error block vector (offsets, and gain mismatch), shared by both
 /// axes (WindowSettings::sensor_offsets, sensor_gains).
 enum OffsetEntry : int {
@@ -182,9 +191,9 @@ class BlockStatistics {
     if (inverter_wide_share_ != 0.0 || inverter_bus_share_ != 0.0) {
       // The zero-crossing shape as a mix of two widths, and the dead-time part following the logged
       // bus (a zero share adds exact zeros: the same value as the shorter forms).
-      const double Vw = inverter_wide_share_, Vb = inverter_bus_share_;
-      const double wd8[8] = {wd[0], wd[1], wd[2], wd[3], (V - Vw) * inv_Ld, 0.0, Vw * inv_Ld, Vb * inv_Ld};
-      const double wq9[9] = {wq[0], wq[1], wq[2], wq[3], wq[4], (V - Vw) * inv_Lq, 0.0, Vw * inv_Lq, Vb * inv_Lq};
+      const InverterMix mix = inverterMix();
+      const double wd8[8] = {wd[0], wd[1], wd[2], wd[3], mix.narrow * inv_Ld, 0.0, mix.wide * inv_Ld, mix.bus * inv_Ld};
+      const double wq9[9] = {wq[0], wq[1], wq[2], wq[3], wq[4], mix.narrow * inv_Lq, 0.0, mix.wide * inv_Lq, mix.bus * inv_Lq};
       return std::max(0.0, 2.0 * upperForm<9>(Sq, wq9, upperForm<8>(Sd, wd8, 0.0)) / stored_weight_);
     }
     const double f = V != 0.0 ? upperForm<6>(Sq, wq, upperForm<5>(Sd, wd, 0.0))
@@ -217,6 +226,7 @@ class BlockStatistics {
   double inverterVoltage() const { return inverter_voltage_; }
   double inverterWideShare() const { return inverter_wide_share_; }
   double inverterBusShare() const { return inverter_bus_share_; }
+  InverterMix inverterMix() const { return InverterMix::of(inverter_voltage_, inverter_wide_share_, inverter_bus_share_); }
   /// The samples carried the DC-bus voltage (the bus entries are not all zero).
   bool busVoltageLogged() const { return std::isfinite(bus_reference_); }
   /// Inductances for the stationary hold's bending of the currents within a period [H] (0: none);

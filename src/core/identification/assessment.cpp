@@ -109,14 +109,15 @@ std::string unitCause(const SpeedScale& m, double min_log_ratio,
 // U <- U - (V - V_wide) int(s) - V_wide int(s_wide) - V_bus int((v_dc / v_ref - 1) s).
 WindowSums compensated(WindowSums w, double V, double V_wide, double V_bus) {
   if (V == 0.0) return w;
+  const InverterMix mix = InverterMix::of(V, V_wide, V_bus);
   ProductD Ad = ProductD::Identity();
-  Ad(kIntegralUd, kIntegralInverterD) = -(V - V_wide);
-  Ad(kIntegralUd, kIntegralInverterWideD) = -V_wide;
-  Ad(kIntegralUd, kIntegralInverterBusD) = -V_bus;
+  Ad(kIntegralUd, kIntegralInverterD) = -mix.narrow;
+  Ad(kIntegralUd, kIntegralInverterWideD) = -mix.wide;
+  Ad(kIntegralUd, kIntegralInverterBusD) = -mix.bus;
   ProductQ Aq = ProductQ::Identity();
-  Aq(kIntegralUq, kIntegralInverterQ) = -(V - V_wide);
-  Aq(kIntegralUq, kIntegralInverterWideQ) = -V_wide;
-  Aq(kIntegralUq, kIntegralInverterBusQ) = -V_bus;
+  Aq(kIntegralUq, kIntegralInverterQ) = -mix.narrow;
+  Aq(kIntegralUq, kIntegralInverterWideQ) = -mix.wide;
+  Aq(kIntegralUq, kIntegralInverterBusQ) = -mix.bus;
   w.mean_d = Ad * w.mean_d * Ad.transpose();
   w.mean_q = Aq * w.mean_q * Aq.transpose();
   w.mean_difference_d = Ad * w.mean_difference_d * Ad.transpose();
@@ -290,8 +291,8 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   // the other three add nothing. Without a width (a sharp sign change) nothing is added.
   const double width = stats.inverterZeroCrossingCurrent();
   if (out.inverter_modelled && width > 0 && L > 0 && !stats.shapeObserverActive()) {
-    const double slope = std::abs(out.inverter_voltage - out.inverter_wide_share) / width +
-                         std::abs(out.inverter_wide_share) / (2.0 * width);
+    const InverterMix mix = InverterMix::of(out.inverter_voltage, out.inverter_wide_share, out.inverter_bus_share);
+    const double slope = std::abs(mix.narrow) / width + std::abs(mix.wide) / (2.0 * width);
     const double z = stats.nominalPeriod() * slope / L;
     out.crossing_floor = std::isfinite(z) ? 0.0031 * z * z : 0.0;
   }

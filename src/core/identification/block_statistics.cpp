@@ -86,6 +86,30 @@ void BlockStatistics::breakContinuity() {
 
 namespace {
 inline double sign(double x) { return x > 0 ? 1.0 : (x < 0 ? -1.0 : 0.0); }
+
+/// The voltage vector held in the stator frame turns by -omega_e t in the rotor frame; its integral
+/// over [0, t] is S u + C (u_q, -u_d): int_0^t e^{-j w tau} dtau = S - j C, S = sin(w t) / w,
+/// C = (1 - cos(w t)) / w.
+struct HeldVectorIntegral {
+  double S, C;  // [s]
+};
+HeldVectorIntegral heldVectorIntegral(double w, double t) {
+  const double wt = w * t;
+  if (std::abs(wt) > 1e-6) return {std::sin(wt) / w, (1.0 - std::cos(wt)) / w};
+  return {t * (1.0 - wt * wt / 6.0), 0.5 * wt * t};
+}
+
+/// Over a period h the held vector ramps the d voltage by w t u_q (the q voltage by -w t u_d), so the
+/// currents bend, i_d'' = w u_q / L_d, i_q'' = -w u_d / L_q: the trapezoid of each current misses
+/// -(h^3 / 12) i'', and at mid-period the current lies -(h^2 / 8) i'' off the chord.
+struct HoldBend {
+  double missed_d, missed_q;  // [A s]
+  double mid_d, mid_q;        // [A]
+};
+HoldBend holdBend(double h, double w, double u_d, double u_q, double L_d, double L_q) {
+  const double k = h * h * h / 12.0 * w, m = -h * h / 8.0 * w;
+  return {-k * u_q / L_d, k * u_d / L_q, m * u_q / L_d, -m * u_d / L_q};
+}
 }  // namespace
 
 void inverterShape(const Sample& s, double& shape_d, double& shape_q, std::array<double, 3>* phase) {
@@ -154,8 +178,9 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
   const double R = observer_model_[kRs], L_d = observer_model_[kLd], L_q = observer_model_[kLq];
   const double psi_f = observer_model_[kPsiF];
   const double width = settings_.inverter_zero_crossing_current;
-  const double V_narrow = inverter_voltage_ - inverter_wide_share_ + inverter_bus_share_ * p.bus_ratio;
-  const double V_wide = inverter_wide_share_;
+  const InverterMix mix = inverterMix();
+  const double V_narrow = mix.narrow + mix.bus * p.bus_ratio;
+  const double V_wide = mix.wide;
   // The inverter error at currents (d, q) and an angle (its cos, sin): the fitted mix, its two
   // shapes (the d-q images of tanh over w and over 2w) and its slope d(error)/d(current) (2x2, row =
   // error axis) = R(-theta) (2/3) sum_k f'(i_k) r_k r_k^T R(theta), r_k the phases' rows of the
@@ -219,19 +244,11 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
   const double h = dt / n, dtheta = angle_increment / n;
   const double cr = std::cos(dtheta), sr = std::sin(dtheta), crh = std::cos(0.5 * dtheta), srh = std::sin(0.5 * dtheta);
   // The voltage over [t_a, t_b] of the period: the held vector, turning by -omega_e t in the rotor
-  // frame with the stationary hold (S(t) = sin(w t) / w, C(t) = (1 - cos(w t)) / w), else constant.
+  // frame with the stationary hold, else constant; within a substep the held vector's bend of the
+  // currents, as in the block integrals.
   const double w = p.omega_e;
-  const auto S = [&](double t) { return std::abs(w * t) > 1e-6 ? std::sin(w * t) / w : t; };
-  const auto C = [&](double t) { return std::abs(w * t) > 1e-6 ? (1.0 - std::cos(w * t)) / w : 0.5 * w * t * t; };
-  // Within a substep the held vector's bend of the currents, as in the block integrals.
-  double missed_d = 0.0, missed_q = 0.0, bend_d = 0.0, bend_q = 0.0;
-  if (settings_.stationary_hold) {
-    const double k = h * h * h / 12.0 * w, m = -h * h / 8.0 * w;
-    missed_d = -k * p.applied_q / L_d;
-    missed_q = k * p.applied_d / L_q;
-    bend_d = m * p.applied_q / L_d;
-    bend_q = -m * p.applied_d / L_q;
-  }
+  const HoldBend bend = settings_.stationary_hold ? holdBend(h, w, p.applied_d, p.applied_q, L_d, L_q) : HoldBend{};
+  const double missed_d = bend.missed_d, missed_q = bend.missed_q, bend_d = bend.mid_d, bend_q = bend.mid_q;
   const double d_start = observer_i_d_, q_start = observer_i_q_;
   double d0 = d_start, q0 = q_start;
   double cos0 = std::cos(p.theta_e), sin0 = std::sin(p.theta_e);
@@ -242,7 +259,8 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
   for (int j = 0; j < n; ++j) {
     double dU_d = h * p.applied_d, dU_q = h * p.applied_q;
     if (settings_.stationary_hold) {
-      const double dS = S((j + 1) * h) - S(j * h), dC = C((j + 1) * h) - C(j * h);
+      const HeldVectorIntegral a = heldVectorIntegral(w, j * h), b = heldVectorIntegral(w, (j + 1) * h);
+      const double dS = b.S - a.S, dC = b.C - a.C;
       dU_d = dS * p.applied_d + dC * p.applied_q;
       dU_q = dS * p.applied_q - dC * p.applied_d;
     }
@@ -372,13 +390,9 @@ bool BlockStatistics::add(const Sample& s) {
       c.Om = p.Om + h * (p.omega_e + s.omega_e);
     }
     if (settings_.stationary_hold) {
-      // The vector held in the stator frame turns by -omega_e t in the rotor frame:
-      // int_0^dt e^{-j w t} dt = sin(w dt)/w - j (1 - cos(w dt))/w, applied to u_d + j u_q.
-      const double w = p.omega_e, wdt = w * dt;
-      const double S = std::abs(wdt) > 1e-6 ? std::sin(wdt) / w : dt * (1.0 - wdt * wdt / 6.0);
-      const double C = std::abs(wdt) > 1e-6 ? (1.0 - std::cos(wdt)) / w : 0.5 * wdt * dt;
-      c.U_d = p.U_d + S * p.applied_d + C * p.applied_q;
-      c.U_q = p.U_q + S * p.applied_q - C * p.applied_d;
+      const HeldVectorIntegral held = heldVectorIntegral(p.omega_e, dt);
+      c.U_d = p.U_d + held.S * p.applied_d + held.C * p.applied_q;
+      c.U_q = p.U_q + held.S * p.applied_q - held.C * p.applied_d;
     } else {
       c.U_d = p.U_d + dt * p.applied_d;  // zero-order hold over [t_j, t_j+1) in the rotor frame
       c.U_q = p.U_q + dt * p.applied_q;
@@ -401,25 +415,17 @@ bool BlockStatistics::add(const Sample& s) {
       c.OmIq += omega * observed.missed_q;
       c.phase = observed.phase;
     } else if (settings_.stationary_hold && hold_L_d_ > 0 && hold_L_q_ > 0) {
-      // The held vector turns by -omega_e t within the period, so the d voltage ramps by
-      // omega_e t u_q (the q voltage by -omega_e t u_d) and the currents bend: the trapezoid misses
-      // -(dt^3 / 12) i'' of each current integral, i_d'' = omega_e u_q / L_d, i_q'' = -omega_e u_d / L_q
-      // (with the inductances of the data's last exact fit; on the robot joint at 300 rpm and
-      // 20 kHz, R_s times the missed 7 mA of i_d read as L_q 1 % high).
-      const double k = dt * dt * dt / 12.0 * p.omega_e;
-      const double missed_d = -k * p.applied_q / hold_L_d_, missed_q = k * p.applied_d / hold_L_q_;
-      c.I_d += missed_d;
-      c.I_q += missed_q;
-      c.OmId += p.omega_e * missed_d;
-      c.OmIq += p.omega_e * missed_q;
-      // At mid-period the bent current lies -(dt^2 / 8) i'' off the chord: where a phase current
-      // crosses zero, the inverter error's shape follows the bent current (on the robot joint a
-      // 10 mA bend across a +-0.5 A crossing was the largest misfit left).
-      if (std::isfinite(p.theta_e)) {
-        const double m = -dt * dt / 8.0;
-        const Vec2 bend_dq{m * p.omega_e * p.applied_q / hold_L_d_, -m * p.omega_e * p.applied_d / hold_L_q_};
-        mid_bend = phaseFromDq(bend_dq.x, bend_dq.y, p.theta_e + 0.5 * dt * p.omega_e);
-      }
+      // The held vector bends the currents within the period (holdBend), with the inductances of the
+      // data's last exact fit; on the robot joint at 300 rpm and 20 kHz, R_s times the missed 7 mA of
+      // i_d read as L_q 1 % high.
+      const HoldBend bend = holdBend(dt, p.omega_e, p.applied_d, p.applied_q, hold_L_d_, hold_L_q_);
+      c.I_d += bend.missed_d;
+      c.I_q += bend.missed_q;
+      c.OmId += p.omega_e * bend.missed_d;
+      c.OmIq += p.omega_e * bend.missed_q;
+      // Where a phase current crosses zero, the inverter error's shape follows the bent current (on
+      // the robot joint a 10 mA bend across a +-0.5 A crossing was the largest misfit left).
+      if (std::isfinite(p.theta_e)) mid_bend = phaseFromDq(bend.mid_d, bend.mid_q, p.theta_e + 0.5 * dt * p.omega_e);
     }
     c.I_cos = p.I_cos + h * (p.cos_theta + c.cos_theta);
     c.I_sin = p.I_sin + h * (p.sin_theta + c.sin_theta);
