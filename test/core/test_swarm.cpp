@@ -184,3 +184,77 @@ TEST(ParticleSwarm, CycleRestartRestoresTheTemperatureSchedule) {
   s.iterate(bowl);
   EXPECT_NEAR(s.temperature(), 800.0, 1e-9);
 }
+
+// The swarm decides for all particles at once with vector loops; every decision and temperature
+// must be the one the policy's accept() gives particle by particle (better, equal, worse, NaN,
+// draws near the Metropolis boundary where exp() decides).
+TEST(Acceptance, BatchDecisionsEqualOneByOne) {
+  const std::vector<std::shared_ptr<AcceptancePolicy>> policies{
+      std::make_shared<AlwaysAccept>(), std::make_shared<MetropolisAcceptance>(2.0, 0.8),
+      std::make_shared<BackfireDoubleAnnealing>(2.0, 1.5, 0.8, 0.9, 0.001)};
+  BlockRandom rng(11);
+  const std::size_t n = 64;
+  for (const auto& policy : policies) {
+    SwarmTemperatures batch;
+    batch.resize(n);
+    std::vector<ParticleTemperature> single(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      policy->reset(single[i]);
+      single[i].T *= 0.2 + rng.uniform();
+      batch.set(i, single[i]);
+    }
+    int accepted_worse = 0, rejected = 0, near_boundary = 0;
+    for (int round = 0; round < 200; ++round) {
+      std::vector<double> delta(n), r(n), accepted(n);
+      for (std::size_t i = 0; i < n; ++i) {
+        const double u = rng.uniform();
+        delta[i] = u < 0.3 ? -u : (u < 0.4 ? 0.0 : (u < 0.42 ? std::nan("") : 5.0 * (u - 0.4)));
+        r[i] = rng.uniform();
+        if (i % 7 == 0 && delta[i] > 0) {  // right at exp(-x): only exp() can tell
+          r[i] = std::exp(-delta[i] / single[i].T);
+          ++near_boundary;
+        }
+      }
+      policy->acceptAll(n, delta.data(), r.data(), batch, accepted.data());
+      for (std::size_t i = 0; i < n; ++i) {
+        const bool one = policy->accept(delta[i], r[i], single[i]);
+        ASSERT_EQ(accepted[i] == 1.0, one) << policy->name() << " particle " << i << " delta " << delta[i];
+        ASSERT_TRUE(accepted[i] == 1.0 || accepted[i] == 0.0);
+        accepted_worse += one && delta[i] > 0;
+        rejected += !one;
+      }
+      policy->endIterationAll(n, batch);
+      for (std::size_t i = 0; i < n; ++i) {
+        policy->endIteration(single[i]);
+        ASSERT_EQ(batch.get(i).T, single[i].T) << policy->name();
+        ASSERT_EQ(batch.get(i).c2_power, single[i].c2_power) << policy->name();
+        ASSERT_EQ(batch.get(i).accepted_worse, single[i].accepted_worse) << policy->name();
+      }
+    }
+    EXPECT_GT(accepted_worse, 20) << policy->name();  // every branch of the decision was exercised
+    if (policy->hasTemperature()) {
+      EXPECT_GT(rejected, 20) << policy->name();
+    }
+    EXPECT_GT(near_boundary, 100);
+  }
+}
+
+TEST(BlockRandom, UniformInTheUnitIntervalAndRepeatable) {
+  BlockRandom a(5), b(5), c(6);
+  std::vector<double> x(BlockRandom::blockCount(100000)), y(x.size()), z(x.size());
+  a.fill(x.data(), x.size());
+  b.fill(y.data(), y.size());
+  c.fill(z.data(), z.size());
+  EXPECT_EQ(x, y);
+  EXPECT_NE(x, z);
+  double sum = 0.0, below_tenth = 0.0;
+  for (double v : x) {
+    ASSERT_GE(v, 0.0);
+    ASSERT_LT(v, 1.0);
+    sum += v;
+    below_tenth += v < 0.1;
+  }
+  const double count = static_cast<double>(x.size());
+  EXPECT_NEAR(sum / count, 0.5, 0.005);        // sd of the mean 0.0009
+  EXPECT_NEAR(below_tenth / count, 0.1, 0.003);  // sd 0.00095
+}

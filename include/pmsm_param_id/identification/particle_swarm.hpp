@@ -39,6 +39,27 @@ inline bool metropolisAccepts(double x, double r) {
   return std::exp(-x) > r;  // inside the band; also x = NaN (rejected), x = inf with r = 0 (rejected)
 }
 
+/// The temperature state of a whole swarm, field by field (entry i is particle i): what the batch
+/// acceptance reads and writes. Sized to a multiple of kSwarmLanes; the entries past the swarm's
+/// particles are padding and never read back.
+struct SwarmTemperatures {
+  std::vector<double> T, c2_power, accepted_worse;
+  void resize(std::size_t n) {
+    T.assign(n, 0.0);
+    c2_power.assign(n, 1.0);
+    accepted_worse.assign(n, 0.0);
+  }
+  ParticleTemperature get(std::size_t i) const { return {T[i], static_cast<int>(accepted_worse[i]), c2_power[i]}; }
+  void set(std::size_t i, const ParticleTemperature& th) {
+    T[i] = th.T;
+    accepted_worse[i] = th.accepted_worse;
+    c2_power[i] = th.c2_power;
+  }
+};
+/// The swarm's per-particle arrays are padded to a multiple of this (four doubles: one AVX register),
+/// so that the vector loops need no remainder.
+constexpr std::size_t kSwarmLanes = 4;
+
 class AcceptancePolicy {
  public:
   virtual ~AcceptancePolicy() = default;
@@ -51,6 +72,14 @@ class AcceptancePolicy {
   /// Called once per particle at the end of every swarm iteration.
   virtual void endIteration(ParticleTemperature& th) const = 0;
   virtual bool hasTemperature() const { return true; }
+  /// accept() for particles [0, n) at once (n a multiple of kSwarmLanes): accepted[i] is 1
+  /// (accepted) or 0; the same decisions and temperatures as accept() one particle at a time. The
+  /// shipped policies do it in loops the compiler turns into vector instructions; this default
+  /// calls accept().
+  virtual void acceptAll(std::size_t n, const double* delta, const double* r, SwarmTemperatures& th,
+                         double* accepted) const;
+  /// endIteration() for particles [0, n).
+  virtual void endIterationAll(std::size_t n, SwarmTemperatures& th) const;
 };
 
 /// Plain PSO: every new position is taken.
@@ -61,6 +90,9 @@ class AlwaysAccept final : public AcceptancePolicy {
   bool accept(double, double, ParticleTemperature&) const override { return true; }
   void endIteration(ParticleTemperature&) const override {}
   bool hasTemperature() const override { return false; }
+  void acceptAll(std::size_t n, const double* delta, const double* r, SwarmTemperatures& th,
+                 double* accepted) const override;
+  void endIterationAll(std::size_t, SwarmTemperatures&) const override {}
 };
 
 /// SAPSO: Metropolis acceptance (Eq. 16) and geometric annealing T <- C1 T every iteration (Eq. 7).
@@ -74,6 +106,9 @@ class MetropolisAcceptance final : public AcceptancePolicy {
     return metropolisAccepts(delta / th.T, r);
   }
   void endIteration(ParticleTemperature& th) const override { th.T *= C1_; }
+  void acceptAll(std::size_t n, const double* delta, const double* r, SwarmTemperatures& th,
+                 double* accepted) const override;
+  void endIterationAll(std::size_t n, SwarmTemperatures& th) const override;
 
  private:
   double T1_, C1_;
@@ -103,6 +138,9 @@ class BackfireDoubleAnnealing final : public AcceptancePolicy {
     return false;
   }
   void endIteration(ParticleTemperature&) const override {}
+  void acceptAll(std::size_t n, const double* delta, const double* r, SwarmTemperatures& th,
+                 double* accepted) const override;
+  void endIterationAll(std::size_t, SwarmTemperatures&) const override {}
 
  private:
   double T1_, T2_, C1_, C2_, zero_delta_;
@@ -152,38 +190,50 @@ class ParticleSwarm {
   using Point = std::array<double, kParameterCount>;  // normalised [0, 1]
 
  private:
-  struct Particle {
-    Point x{}, v{}, pbest{};
-    double f = std::numeric_limits<double>::infinity();
-    double f_pbest = std::numeric_limits<double>::infinity();
-    ParticleTemperature th;
-  };
+  /// The swarm is stored by dimension (structure of arrays): entry [d * padded_ + i] is particle i's
+  /// coordinate d, so that each step of an iteration is one loop over all particles that the
+  /// compiler turns into vector instructions.
+  std::size_t n_ = 0;
+  double& at(std::vector<double>& a, int d, std::size_t i) { return a[static_cast<std::size_t>(d) * padded_ + i]; }
+  double at(const std::vector<double>& a, int d, std::size_t i) const {
+    return a[static_cast<std::size_t>(d) * padded_ + i];
+  }
   ParameterVector toParameters(const Point& u) const {
     ParameterVector p;
     for (int d = 0; d < kParameterCount; ++d) p[d] = lower_[d] + u[d] * span_[d];
     return p;
   }
+  ParameterVector parametersOf(const std::vector<double>& a, std::size_t i) const {
+    ParameterVector p;
+    for (int d = 0; d < kParameterCount; ++d) p[d] = lower_[d] + at(a, d, i) * span_[d];
+    return p;
+  }
+  Point pointOf(const std::vector<double>& a, std::size_t i) const {
+    Point u;
+    for (int d = 0; d < kParameterCount; ++d) u[d] = at(a, d, i);
+    return u;
+  }
   void restartCycle(const Fitness& f);
-  /// One iteration with the policy's concrete type: the shipped policies are final classes, so
-  /// accept() and endIteration() are inlined into the loop (in a profile of FBDAPSO's iteration
-  /// the 40 virtual calls and exp() were a fifth of its time); any other policy goes through the
-  /// base class.
-  template <class F, class Policy>
-  void iterateWith(const F& f, const Policy& policy);
-  enum class PolicyKind { Pso, Sapso, Fbdapso, Other };
-  PolicyKind policy_kind_ = PolicyKind::Other;
+  /// Eq. (4) for every particle: velocities and candidate positions (move_x_, move_v_) from this
+  /// iteration's draws r_.
+  void proposeMoves(double inertia);
+  /// Eq. (15)-(17) for every particle (move_f_ holds the candidates' fitness), then the moves,
+  /// personal bests and the global best.
+  void acceptMoves();
+  std::size_t padded_ = 0;  // n_ rounded up to kSwarmLanes: the length of every per-particle array
 
   SwarmSettings s_;
   std::shared_ptr<const AcceptancePolicy> policy_;
   ParameterVector lower_, span_;
-  std::vector<Particle> swarm_;
-  struct Move {
-    Point x{}, v{};
-    double f = 0.0;
-  };
-  std::vector<Move> moves_;  // this iteration's candidate positions (reused, no allocation per sample)
-  std::vector<ParameterVector> batch_points_;  // the same in parameter units, for a batch fitness
-  std::vector<double> batch_fitness_;
+  std::vector<double> x_, v_, pbest_;          // positions, velocities, personal bests (by dimension)
+  std::vector<double> f_, f_pbest_;            // fitness at x_ and at pbest_
+  SwarmTemperatures th_;
+  std::vector<double> delta_;                  // this iteration's normalised fitness increase (Eq. 15)
+  std::vector<double> accepted_, improved_;    // flags: 1 or 0
+  std::vector<double> gbest_by_entry_;         // gbest_[d] for every particle's coordinate d
+  std::vector<double> move_x_, move_v_, move_f_;  // this iteration's candidates (reused, no allocation)
+  std::vector<double> r_;  // this iteration's draws: r1, r2 (by dimension), the Metropolis r per particle
+  std::vector<ParameterVector> batch_points_;  // the candidates in parameter units
   /// F has batch(const ParameterVector*, size_t, double*): every particle in one call.
   template <class F, class = void>
   struct HasBatch : std::false_type {};
@@ -192,7 +242,7 @@ class ParticleSwarm {
       : std::true_type {};
   Point gbest_{};
   double f_gbest_ = std::numeric_limits<double>::infinity();
-  FastRandom rng_;
+  BlockRandom rng_;
   int k_ = 0;
   bool evaluated_ = false;
   std::uint64_t total_iterations_ = 0, evaluations_ = 0, worse_proposed_ = 0, worse_accepted_ = 0;
@@ -200,78 +250,22 @@ class ParticleSwarm {
 
 template <class F>
 void ParticleSwarm::iterate(const F& f) {
-  switch (policy_kind_) {
-    case PolicyKind::Pso: return iterateWith(f, static_cast<const AlwaysAccept&>(*policy_));
-    case PolicyKind::Sapso: return iterateWith(f, static_cast<const MetropolisAcceptance&>(*policy_));
-    case PolicyKind::Fbdapso: return iterateWith(f, static_cast<const BackfireDoubleAnnealing&>(*policy_));
-    case PolicyKind::Other: break;
-  }
-  iterateWith(f, *policy_);
-}
-
-template <class F, class Policy>
-void ParticleSwarm::iterateWith(const F& f, const Policy& policy) {
   if (!evaluated_) evaluateAll(f);
   const double w = s_.w_max - (s_.w_max - s_.w_min) * static_cast<double>(k_) / s_.reset_iterations;
-  const double scale = std::max(std::abs(f_gbest_), 1e-300);  // Delta f is relative to the best
-  const bool thermal = policy.hasTemperature();
-  const std::size_t n = swarm_.size();
+  const std::size_t n = n_;
   // 1. Every particle's move (Eq. 4) and its fitness, before any acceptance decision: the update is
   //    synchronous (gbest changes at the end of the iteration), so the order does not matter, and
-  //    20 independent evaluations back to back keep the CPU busy between unpredictable branches.
-  moves_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    Particle& p = swarm_[i];
-    Move& m = moves_[i];
-    for (int d = 0; d < kParameterCount; ++d) {
-      double r1, r2;
-      rng_.uniformPair(r1, r2);
-      double v = w * p.v[d] + s_.c1 * r1 * (p.pbest[d] - p.x[d]) + s_.c2 * r2 * (gbest_[d] - p.x[d]);
-      v = std::min(std::max(v, -s_.v_max), s_.v_max);
-      double x = p.x[d] + v;
-      if (x < 0.0) { x = 0.0; v = 0.0; }
-      if (x > 1.0) { x = 1.0; v = 0.0; }
-      m.x[d] = x;
-      m.v[d] = v;
-    }
-  }
+  //    20 independent evaluations back to back keep the CPU busy.
+  proposeMoves(w);
+  for (std::size_t i = 0; i < n; ++i) batch_points_[i] = parametersOf(move_x_, i);
   if constexpr (HasBatch<F>::value) {  // all particles at once (the output-error fitness)
-    batch_points_.resize(n);
-    batch_fitness_.resize(n);
-    for (std::size_t i = 0; i < n; ++i) batch_points_[i] = toParameters(moves_[i].x);
-    f.batch(batch_points_.data(), n, batch_fitness_.data());
-    for (std::size_t i = 0; i < n; ++i) moves_[i].f = batch_fitness_[i];
+    f.batch(batch_points_.data(), n, move_f_.data());
   } else {
-    for (Move& m : moves_) m.f = f(toParameters(m.x));
+    for (std::size_t i = 0; i < n; ++i) move_f_[i] = f(batch_points_[i]);
   }
   evaluations_ += n;
   // 2. Acceptance (Eq. 15-17), temperatures (Eq. 7-8), personal and global bests.
-  Point best = gbest_;
-  for (std::size_t i = 0; i < n; ++i) {
-    Particle& p = swarm_[i];
-    const Move& m = moves_[i];
-    const double delta = (m.f - p.f) / scale;
-    const double r = thermal && delta >= 0 ? rng_.uniform() : 0.0;
-    const bool accepted = policy.accept(delta, r, p.th);
-    const bool worse = delta > 0;  // counted without a branch: the outcome is random
-    worse_proposed_ += worse;
-    worse_accepted_ += worse & accepted;
-    if (accepted) {
-      p.x = m.x;
-      p.v = m.v;
-      p.f = m.f;
-      if (m.f < p.f_pbest) {
-        p.f_pbest = m.f;
-        p.pbest = m.x;
-        if (m.f < f_gbest_) {
-          f_gbest_ = m.f;
-          best = m.x;
-        }
-      }
-    }
-    policy.endIteration(p.th);
-  }
-  gbest_ = best;
+  acceptMoves();
   ++total_iterations_;
   if (++k_ >= s_.reset_iterations) {
     k_ = 0;

@@ -1,52 +1,289 @@
 #include "pmsm_param_id/identification/particle_swarm.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
+#include "vector_clones.hpp"
+
 namespace pmsm_param_id {
+
+// The per-iteration work is a handful of loops over all particles (or all their coordinates) that
+// the compiler turns into vector instructions: no branches, flags as doubles 1 or 0 and selected
+// with `flag > 0.5 ? a : b` (both sides computed first). This file is compiled with
+// -fno-trapping-math (CMakeLists.txt): without it GCC may not compute both sides of a select,
+// because one of them could raise a floating-point exception the program never asked to see; the
+// numbers are the same either way.
+namespace {
+std::size_t roundUp(std::size_t n) { return (n + kSwarmLanes - 1) / kSwarmLanes * kSwarmLanes; }
+
+/// Eq. (4) for every coordinate of every particle, with the velocity limit and the box's faces.
+PMSM_VECTOR_CLONES
+void moveAll(std::size_t entries, double inertia, double c1, double c2, double v_max, const double* __restrict x,
+             const double* __restrict v, const double* __restrict pbest, const double* __restrict gbest,
+             const double* __restrict r1, const double* __restrict r2, double* __restrict move_x,
+             double* __restrict move_v) {
+  for (std::size_t j = 0; j < entries; ++j) {
+    double vj = inertia * v[j] + c1 * r1[j] * (pbest[j] - x[j]) + c2 * r2[j] * (gbest[j] - x[j]);
+    vj = std::min(std::max(vj, -v_max), v_max);
+    const double xj = x[j] + vj;
+    const bool outside = (xj < 0.0) | (xj > 1.0);  // on a face: stop there
+    move_x[j] = std::min(std::max(xj, 0.0), 1.0);
+    move_v[j] = outside ? 0.0 : vj;
+  }
+}
+
+/// Eq. (15): the fitness increase relative to the global best.
+PMSM_VECTOR_CLONES
+void increaseAll(std::size_t n, const double* __restrict f_new, const double* __restrict f_old, double scale,
+                 double* __restrict delta) {
+  for (std::size_t i = 0; i < n; ++i) delta[i] = (f_new[i] - f_old[i]) / scale;
+}
+
+/// metropolisAccepts(x[i], r[i]) where candidate[i] is 1 (0 elsewhere): the bounds decide in the
+/// vector loop; the rare lanes between them (marked 0.5) go to exp() one by one.
+PMSM_VECTOR_CLONES
+void metropolisBounds(std::size_t n, const double* __restrict x, const double* __restrict r,
+                      const double* __restrict candidate, double* __restrict decision) {
+  for (std::size_t i = 0; i < n; ++i) {
+    const double xi = x[i], ri = r[i];
+    const double x2 = xi * xi;
+    const double x3 = x2 * xi;
+    const bool surely_accepted = ri < 1.0 - xi + 0.5 * x2 - x3 * (1.0 / 6.0) - 1e-12;
+    const bool surely_rejected = ri * (1.0 + xi + 0.5 * x2 + x3 * (1.0 / 6.0) + x2 * x2 * (1.0 / 24.0)) > 1.0 + 1e-12;
+    const double bounded = surely_accepted ? 1.0 : (surely_rejected ? 0.0 : 0.5);
+    decision[i] = candidate[i] > 0.5 ? bounded : 0.0;
+  }
+}
+void metropolisAll(std::size_t n, const double* x, const double* r, const double* candidate, double* decision) {
+  metropolisBounds(n, x, r, candidate, decision);
+  for (std::size_t i = 0; i < n; ++i)
+    if (decision[i] == 0.5) decision[i] = std::exp(-x[i]) > r[i] ? 1.0 : 0.0;
+}
+
+/// Eq. (17)'s argument of the Metropolis test and whether it applies (the move is not better).
+PMSM_VECTOR_CLONES
+void backfireArguments(std::size_t n, const double* __restrict delta, const double* __restrict T, double zero_delta,
+                       double* __restrict x, double* __restrict not_better) {
+  for (std::size_t i = 0; i < n; ++i) {
+    const double d = delta[i] == 0.0 ? zero_delta : delta[i];
+    x[i] = d / T[i];
+    not_better[i] = delta[i] < 0.0 ? 0.0 : 1.0;  // NaN: not better, and rejected by the test
+  }
+}
+
+/// FBDAPSO's temperatures (Eq. 7-8) after the decisions: better moves anneal, accepted worse ones
+/// temper first (C2^d T2 with d counted on) and then anneal, rejected ones leave T as it is.
+PMSM_VECTOR_CLONES
+void backfireTemperatures(std::size_t n, double C1, double C2, double T2, const double* __restrict not_better,
+                          const double* __restrict tempered, double* __restrict T, double* __restrict c2_power,
+                          double* __restrict accepted_worse, double* __restrict accepted) {
+  for (std::size_t i = 0; i < n; ++i) {
+    const bool better = not_better[i] < 0.5, worse_taken = tempered[i] > 0.5;
+    const double c2_next = c2_power[i] * C2;
+    const double c2 = worse_taken ? c2_next : c2_power[i];
+    const double annealed = C1 * T[i], tempered_T = C1 * (T[i] + c2 * T2);
+    T[i] = better ? annealed : (worse_taken ? tempered_T : T[i]);
+    c2_power[i] = c2;
+    accepted_worse[i] += tempered[i];
+    accepted[i] = better ? 1.0 : tempered[i];
+  }
+}
+
+/// SAPSO's Metropolis argument (Eq. 16) and whether it applies (the move is worse).
+PMSM_VECTOR_CLONES
+void metropolisArguments(std::size_t n, const double* __restrict delta, const double* __restrict T,
+                         double* __restrict x, double* __restrict worse) {
+  for (std::size_t i = 0; i < n; ++i) {
+    x[i] = delta[i] / T[i];
+    worse[i] = delta[i] > 0.0 ? 1.0 : 0.0;
+  }
+}
+PMSM_VECTOR_CLONES
+void orNotWorse(std::size_t n, const double* __restrict delta, double* __restrict accepted) {
+  for (std::size_t i = 0; i < n; ++i) accepted[i] = delta[i] <= 0.0 ? 1.0 : accepted[i];
+}
+PMSM_VECTOR_CLONES
+void scaleAll(std::size_t n, double factor, double* __restrict a) {
+  for (std::size_t i = 0; i < n; ++i) a[i] *= factor;
+}
+
+/// Accepted moves take their fitness; those better than their personal best replace it.
+PMSM_VECTOR_CLONES
+void takeFitness(std::size_t n, const double* __restrict accepted, const double* __restrict f_new,
+                 double* __restrict f, double* __restrict f_pbest, double* __restrict improved) {
+  for (std::size_t i = 0; i < n; ++i) {
+    const bool taken = accepted[i] > 0.5;
+    const bool better = taken & (f_new[i] < f_pbest[i]);
+    f[i] = taken ? f_new[i] : f[i];
+    f_pbest[i] = better ? f_new[i] : f_pbest[i];
+    improved[i] = better ? 1.0 : 0.0;
+  }
+}
+/// to[i] = from[i] where flag[i] is 1.
+PMSM_VECTOR_CLONES
+void copyWhere(std::size_t n, const double* __restrict flag, const double* __restrict from, double* __restrict to) {
+  for (std::size_t i = 0; i < n; ++i) to[i] = flag[i] > 0.5 ? from[i] : to[i];
+}
+
+/// Scratch for the policies' batch decisions (the swarm's size rarely exceeds a few dozen).
+struct Scratch {
+  std::vector<double> x, applies, decision;
+  void resize(std::size_t n) {
+    if (x.size() < n) {
+      x.resize(n);
+      applies.resize(n);
+      decision.resize(n);
+    }
+  }
+};
+Scratch& scratch(std::size_t n) {
+  thread_local Scratch s;
+  s.resize(n);
+  return s;
+}
+}  // namespace
+
+void AcceptancePolicy::acceptAll(std::size_t n, const double* delta, const double* r, SwarmTemperatures& th,
+                                 double* accepted) const {
+  for (std::size_t i = 0; i < n; ++i) {
+    ParticleTemperature t = th.get(i);
+    accepted[i] = accept(delta[i], r[i], t) ? 1.0 : 0.0;
+    th.set(i, t);
+  }
+}
+
+void AcceptancePolicy::endIterationAll(std::size_t n, SwarmTemperatures& th) const {
+  for (std::size_t i = 0; i < n; ++i) {
+    ParticleTemperature t = th.get(i);
+    endIteration(t);
+    th.set(i, t);
+  }
+}
+
+void AlwaysAccept::acceptAll(std::size_t n, const double*, const double*, SwarmTemperatures&, double* accepted) const {
+  std::fill_n(accepted, n, 1.0);
+}
+
+void MetropolisAcceptance::acceptAll(std::size_t n, const double* delta, const double* r, SwarmTemperatures& th,
+                                     double* accepted) const {
+  Scratch& s = scratch(n);
+  metropolisArguments(n, delta, th.T.data(), s.x.data(), s.applies.data());
+  metropolisAll(n, s.x.data(), r, s.applies.data(), accepted);
+  orNotWorse(n, delta, accepted);  // Eq. (16): better or equal always
+}
+
+void MetropolisAcceptance::endIterationAll(std::size_t n, SwarmTemperatures& th) const {
+  scaleAll(n, C1_, th.T.data());
+}
+
+void BackfireDoubleAnnealing::acceptAll(std::size_t n, const double* delta, const double* r, SwarmTemperatures& th,
+                                        double* accepted) const {
+  Scratch& s = scratch(n);
+  backfireArguments(n, delta, th.T.data(), zero_delta_, s.x.data(), s.applies.data());
+  metropolisAll(n, s.x.data(), r, s.applies.data(), s.decision.data());
+  backfireTemperatures(n, C1_, C2_, T2_, s.applies.data(), s.decision.data(), th.T.data(), th.c2_power.data(),
+                       th.accepted_worse.data(), accepted);
+}
 
 ParticleSwarm::ParticleSwarm(const SwarmSettings& settings, std::shared_ptr<const AcceptancePolicy> policy,
                              const ParameterVector& lower, const ParameterVector& upper, std::uint64_t seed,
                              const ParameterVector* initial_guess)
     : s_(settings), policy_(std::move(policy)), lower_(lower), rng_(seed) {
   if (s_.particles < 2) throw std::invalid_argument("swarm needs at least 2 particles");
-  if (dynamic_cast<const AlwaysAccept*>(policy_.get())) policy_kind_ = PolicyKind::Pso;
-  else if (dynamic_cast<const MetropolisAcceptance*>(policy_.get())) policy_kind_ = PolicyKind::Sapso;
-  else if (dynamic_cast<const BackfireDoubleAnnealing*>(policy_.get())) policy_kind_ = PolicyKind::Fbdapso;
   for (int d = 0; d < kParameterCount; ++d) {
     if (!(upper[d] > lower[d])) throw std::invalid_argument("swarm bounds: lower must be < upper");
     span_[d] = upper[d] - lower[d];
   }
-  swarm_.resize(static_cast<std::size_t>(s_.particles));
-  for (Particle& p : swarm_) {
+  n_ = static_cast<std::size_t>(s_.particles);
+  padded_ = roundUp(n_);
+  const std::size_t entries = padded_ * kParameterCount;
+  x_.assign(entries, 0.0);
+  v_.assign(entries, 0.0);
+  move_x_.assign(entries, 0.0);
+  move_v_.assign(entries, 0.0);
+  gbest_by_entry_.assign(entries, 0.0);
+  r_.assign(BlockRandom::blockCount(2 * entries + padded_), 0.0);
+  // Padding particles keep an infinite fitness: their candidates are never taken as a best.
+  f_.assign(padded_, std::numeric_limits<double>::infinity());
+  f_pbest_.assign(padded_, std::numeric_limits<double>::infinity());
+  move_f_.assign(padded_, std::numeric_limits<double>::infinity());
+  delta_.assign(padded_, 0.0);
+  accepted_.assign(padded_, 0.0);
+  improved_.assign(padded_, 0.0);
+  batch_points_.assign(n_, ParameterVector{});
+  th_.resize(padded_);
+  for (std::size_t i = 0; i < n_; ++i) {
     for (int d = 0; d < kParameterCount; ++d) {
-      p.x[d] = rng_.uniform();
-      p.v[d] = (2.0 * rng_.uniform() - 1.0) * s_.v_max;
+      at(x_, d, i) = rng_.uniform();
+      at(v_, d, i) = (2.0 * rng_.uniform() - 1.0) * s_.v_max;
     }
-    p.pbest = p.x;
-    policy_->reset(p.th);
+    ParticleTemperature t;
+    policy_->reset(t);
+    th_.set(i, t);
   }
   if (initial_guess) {  // particle 0 starts at the shared initial values
     for (int d = 0; d < kParameterCount; ++d)
-      swarm_[0].x[d] = std::min(1.0, std::max(0.0, ((*initial_guess)[d] - lower_[d]) / span_[d]));
-    swarm_[0].pbest = swarm_[0].x;
+      at(x_, d, 0) = std::min(1.0, std::max(0.0, ((*initial_guess)[d] - lower_[d]) / span_[d]));
   }
-  gbest_ = swarm_[0].x;
+  pbest_ = x_;
+  gbest_ = pointOf(x_, 0);
+}
+
+void ParticleSwarm::proposeMoves(double inertia) {
+  // This iteration's draws in one block: r1 and r2 by coordinate, then one Metropolis draw per
+  // particle (drawn whether or not the particle needs it: the streams' use does not depend on the
+  // data).
+  rng_.fill(r_.data(), r_.size());
+  const std::size_t entries = padded_ * kParameterCount;
+  for (int d = 0; d < kParameterCount; ++d)
+    std::fill_n(gbest_by_entry_.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(d) * padded_),
+                padded_, gbest_[d]);
+  moveAll(entries, inertia, s_.c1, s_.c2, s_.v_max, x_.data(), v_.data(), pbest_.data(), gbest_by_entry_.data(),
+          r_.data(), r_.data() + entries, move_x_.data(), move_v_.data());
+}
+
+void ParticleSwarm::acceptMoves() {
+  const std::size_t n = n_, padded = padded_;
+  const double scale = std::max(std::abs(f_gbest_), 1e-300);  // Delta f is relative to the best
+  increaseAll(padded, move_f_.data(), f_.data(), scale, delta_.data());
+  std::fill(delta_.begin() + static_cast<std::ptrdiff_t>(n), delta_.end(), std::numeric_limits<double>::infinity());
+  policy_->acceptAll(padded, delta_.data(), r_.data() + 2 * padded * kParameterCount, th_, accepted_.data());
+  takeFitness(padded, accepted_.data(), move_f_.data(), f_.data(), f_pbest_.data(), improved_.data());
+  for (int d = 0; d < kParameterCount; ++d) {
+    const std::size_t o = static_cast<std::size_t>(d) * padded;
+    copyWhere(padded, accepted_.data(), move_x_.data() + o, x_.data() + o);
+    copyWhere(padded, accepted_.data(), move_v_.data() + o, v_.data() + o);
+    copyWhere(padded, improved_.data(), move_x_.data() + o, pbest_.data() + o);
+  }
+  // The global best, and what tells the policies apart: moves to a worse position proposed and taken.
+  std::size_t best = n;
+  for (std::size_t i = 0; i < n; ++i) {
+    const bool worse = delta_[i] > 0;
+    worse_proposed_ += worse;
+    worse_accepted_ += worse & (accepted_[i] > 0.5);
+    if (improved_[i] > 0.5 && move_f_[i] < f_gbest_) {
+      f_gbest_ = move_f_[i];
+      best = i;
+    }
+  }
+  if (best < n) gbest_ = pointOf(move_x_, best);
+  policy_->endIterationAll(padded, th_);
 }
 
 void ParticleSwarm::evaluateAll(const Fitness& f) {
   f_gbest_ = std::numeric_limits<double>::infinity();
-  for (Particle& p : swarm_) {
-    p.f = f(toParameters(p.x));
-    p.f_pbest = f(toParameters(p.pbest));
+  for (std::size_t i = 0; i < n_; ++i) {
+    f_[i] = f(parametersOf(x_, i));
+    f_pbest_[i] = f(parametersOf(pbest_, i));
     evaluations_ += 2;
-    if (p.f < p.f_pbest) {
-      p.f_pbest = p.f;
-      p.pbest = p.x;
+    if (f_[i] < f_pbest_[i]) {
+      f_pbest_[i] = f_[i];
+      for (int d = 0; d < kParameterCount; ++d) at(pbest_, d, i) = at(x_, d, i);
     }
-    if (p.f_pbest < f_gbest_) {
-      f_gbest_ = p.f_pbest;
-      gbest_ = p.pbest;
+    if (f_pbest_[i] < f_gbest_) {
+      f_gbest_ = f_pbest_[i];
+      gbest_ = pointOf(pbest_, i);
     }
   }
   evaluated_ = true;
@@ -58,9 +295,11 @@ void ParticleSwarm::restartCycle(const Fitness& f) {
   // fresh velocities a swarm that has collapsed (x = pbest = gbest, v ~ 0) can never move again,
   // even when new data show that its point is wrong (doc/algorithm.md).
   evaluateAll(f);
-  for (Particle& p : swarm_) {
-    policy_->reset(p.th);
-    for (int d = 0; d < kParameterCount; ++d) p.v[d] = (2.0 * rng_.uniform() - 1.0) * s_.restart_velocity;
+  for (std::size_t i = 0; i < n_; ++i) {
+    ParticleTemperature t;
+    policy_->reset(t);
+    th_.set(i, t);
+    for (int d = 0; d < kParameterCount; ++d) at(v_, d, i) = (2.0 * rng_.uniform() - 1.0) * s_.restart_velocity;
   }
 }
 
@@ -70,19 +309,18 @@ void ParticleSwarm::setBounds(const ParameterVector& lower, const ParameterVecto
     if (!(upper[d] > lower[d])) throw std::invalid_argument("swarm bounds: lower must be < upper");
     span[d] = upper[d] - lower[d];
   }
-  const auto remap = [&](Point& u) {
-    for (int d = 0; d < kParameterCount; ++d) {
-      const double value = lower_[d] + u[d] * span_[d];
-      u[d] = std::min(1.0, std::max(0.0, (value - lower[d]) / span[d]));
-    }
+  const auto remap = [&](double& u, int d) {
+    const double value = lower_[d] + u * span_[d];
+    u = std::min(1.0, std::max(0.0, (value - lower[d]) / span[d]));
   };
-  for (Particle& p : swarm_) {
-    remap(p.x);
-    remap(p.pbest);
-    for (int d = 0; d < kParameterCount; ++d)
-      p.v[d] = std::min(s_.v_max, std::max(-s_.v_max, p.v[d] * span_[d] / span[d]));
+  for (std::size_t i = 0; i < n_; ++i) {
+    for (int d = 0; d < kParameterCount; ++d) {
+      remap(at(x_, d, i), d);
+      remap(at(pbest_, d, i), d);
+      at(v_, d, i) = std::min(s_.v_max, std::max(-s_.v_max, at(v_, d, i) * span_[d] / span[d]));
+    }
   }
-  remap(gbest_);
+  for (int d = 0; d < kParameterCount; ++d) remap(gbest_[d], d);
   lower_ = lower;
   span_ = span;
   evaluated_ = false;
@@ -97,8 +335,8 @@ std::array<bool, kParameterCount> ParticleSwarm::bestAtBound() const {
 double ParticleSwarm::temperature() const {
   if (!policy_->hasTemperature()) return std::numeric_limits<double>::quiet_NaN();
   double sum = 0.0;
-  for (const Particle& p : swarm_) sum += p.th.T;
-  return sum / static_cast<double>(swarm_.size());
+  for (std::size_t i = 0; i < n_; ++i) sum += th_.T[i];
+  return sum / static_cast<double>(n_);
 }
 
 }  // namespace pmsm_param_id
