@@ -30,12 +30,18 @@ struct ParticleTemperature {
 /// The margins (1e-12) exceed the rounding of the bounds, so every decision is the one exp() gives;
 /// exp() is left for r inside the band between the bounds: 0.3 % of the draws at x = 0.5, 4 % at
 /// x = 1, 14 % at x = 2, under 3 % beyond x = 5.
-inline bool metropolisAccepts(double x, double r) {
+/// The bounds' verdict: 1 surely accepted, 0 surely rejected, 0.5 between them (exp() decides).
+/// Branch-free, so that the swarm's vector loop can use it for all particles at once.
+inline double metropolisBoundsVerdict(double x, double r) {
   const double x2 = x * x;
   const double x3 = x2 * x;
   const bool surely_accepted = r < 1.0 - x + 0.5 * x2 - x3 * (1.0 / 6.0) - 1e-12;
   const bool surely_rejected = r * (1.0 + x + 0.5 * x2 + x3 * (1.0 / 6.0) + x2 * x2 * (1.0 / 24.0)) > 1.0 + 1e-12;
-  if (surely_accepted || surely_rejected) return surely_accepted;
+  return surely_accepted ? 1.0 : (surely_rejected ? 0.0 : 0.5);
+}
+inline bool metropolisAccepts(double x, double r) {
+  const double verdict = metropolisBoundsVerdict(x, r);
+  if (verdict != 0.5) return verdict == 1.0;
   return std::exp(-x) > r;  // inside the band; also x = NaN (rejected), x = inf with r = 0 (rejected)
 }
 
@@ -230,7 +236,6 @@ class ParticleSwarm {
   SwarmTemperatures th_;
   std::vector<double> delta_;                  // this iteration's normalised fitness increase (Eq. 15)
   std::vector<double> accepted_, improved_;    // flags: 1 or 0
-  std::vector<double> gbest_by_entry_;         // gbest_[d] for every particle's coordinate d
   std::vector<double> move_x_, move_v_, move_f_;  // this iteration's candidates (reused, no allocation)
   std::vector<double> r_;  // this iteration's draws: r1, r2 (by dimension), the Metropolis r per particle
   std::vector<ParameterVector> batch_points_;  // the candidates in parameter units

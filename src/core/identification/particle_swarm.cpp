@@ -17,14 +17,15 @@ namespace pmsm_param_id {
 namespace {
 std::size_t roundUp(std::size_t n) { return (n + kSwarmLanes - 1) / kSwarmLanes * kSwarmLanes; }
 
-/// Eq. (4) for every coordinate of every particle, with the velocity limit and the box's faces.
+/// Eq. (4) for one coordinate of every particle (gbest: the global best's coordinate), with the
+/// velocity limit and the box's faces.
 PMSM_VECTOR_CLONES
-void moveAll(std::size_t entries, double inertia, double c1, double c2, double v_max, const double* __restrict x,
-             const double* __restrict v, const double* __restrict pbest, const double* __restrict gbest,
+void moveAll(std::size_t n, double inertia, double c1, double c2, double v_max, double gbest,
+             const double* __restrict x, const double* __restrict v, const double* __restrict pbest,
              const double* __restrict r1, const double* __restrict r2, double* __restrict move_x,
              double* __restrict move_v) {
-  for (std::size_t j = 0; j < entries; ++j) {
-    double vj = inertia * v[j] + c1 * r1[j] * (pbest[j] - x[j]) + c2 * r2[j] * (gbest[j] - x[j]);
+  for (std::size_t j = 0; j < n; ++j) {
+    double vj = inertia * v[j] + c1 * r1[j] * (pbest[j] - x[j]) + c2 * r2[j] * (gbest - x[j]);
     vj = std::min(std::max(vj, -v_max), v_max);
     const double xj = x[j] + vj;
     const bool outside = (xj < 0.0) | (xj > 1.0);  // on a face: stop there
@@ -46,12 +47,7 @@ PMSM_VECTOR_CLONES
 void metropolisBounds(std::size_t n, const double* __restrict x, const double* __restrict r,
                       const double* __restrict candidate, double* __restrict decision) {
   for (std::size_t i = 0; i < n; ++i) {
-    const double xi = x[i], ri = r[i];
-    const double x2 = xi * xi;
-    const double x3 = x2 * xi;
-    const bool surely_accepted = ri < 1.0 - xi + 0.5 * x2 - x3 * (1.0 / 6.0) - 1e-12;
-    const bool surely_rejected = ri * (1.0 + xi + 0.5 * x2 + x3 * (1.0 / 6.0) + x2 * x2 * (1.0 / 24.0)) > 1.0 + 1e-12;
-    const double bounded = surely_accepted ? 1.0 : (surely_rejected ? 0.0 : 0.5);
+    const double bounded = metropolisBoundsVerdict(x[i], r[i]);
     decision[i] = candidate[i] > 0.5 ? bounded : 0.0;
   }
 }
@@ -202,7 +198,6 @@ ParticleSwarm::ParticleSwarm(const SwarmSettings& settings, std::shared_ptr<cons
   v_.assign(entries, 0.0);
   move_x_.assign(entries, 0.0);
   move_v_.assign(entries, 0.0);
-  gbest_by_entry_.assign(entries, 0.0);
   r_.assign(BlockRandom::blockCount(2 * entries + padded_), 0.0);
   // Padding particles keep an infinite fitness: their candidates are never taken as a best.
   f_.assign(padded_, std::numeric_limits<double>::infinity());
@@ -236,11 +231,11 @@ void ParticleSwarm::proposeMoves(double inertia) {
   // data).
   rng_.fill(r_.data(), r_.size());
   const std::size_t entries = padded_ * kParameterCount;
-  for (int d = 0; d < kParameterCount; ++d)
-    std::fill_n(gbest_by_entry_.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(d) * padded_),
-                padded_, gbest_[d]);
-  moveAll(entries, inertia, s_.c1, s_.c2, s_.v_max, x_.data(), v_.data(), pbest_.data(), gbest_by_entry_.data(),
-          r_.data(), r_.data() + entries, move_x_.data(), move_v_.data());
+  for (int d = 0; d < kParameterCount; ++d) {
+    const std::size_t o = static_cast<std::size_t>(d) * padded_;
+    moveAll(padded_, inertia, s_.c1, s_.c2, s_.v_max, gbest_[d], x_.data() + o, v_.data() + o, pbest_.data() + o,
+            r_.data() + o, r_.data() + entries + o, move_x_.data() + o, move_v_.data() + o);
+  }
 }
 
 void ParticleSwarm::acceptMoves() {
