@@ -160,10 +160,13 @@ void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulativ
       mean[static_cast<std::size_t>(k)] = f * sa + (1.0 - f) * sb;
     }
   }
+  // Into the rotor frame at mid-period: rotate(v, -mid), with cos and sin of one angle (one sincos
+  // call; GCC merges them only when both take the same argument).
   const double mid = p.theta_e + 0.5 * dt * p.omega_e;  // rotor angle at mid-period
-  const Vec2 shape = rotate(clarke(mean[0], mean[1], mean[2]), -mid);
-  int_d = dt * shape.x;
-  int_q = dt * shape.y;
+  const Vec2 v = clarke(mean[0], mean[1], mean[2]);
+  const double cm = std::cos(mid), sm = std::sin(mid);
+  int_d = dt * (cm * v.x + sm * v.y);
+  int_q = dt * (cm * v.y - sm * v.x);
 }
 
 BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative& p, const Sample& s, double dt,
@@ -330,7 +333,11 @@ inline void rankOneUpper(Eigen::Matrix<double, N, N>& S, const Eigen::Matrix<dou
 
 bool BlockStatistics::add(const Sample& s) {
   if (block_samples_ == 0) throw std::logic_error("BlockStatistics::add before configure()");
-  Cumulative c{};
+  // The new entry is written in place: into the free slot, or over the oldest entry once the ring
+  // is full (nothing below reads the oldest before it is dropped).
+  const std::size_t cap = ring_.size();
+  Cumulative& c = ring_[(head_ + count_) % cap];
+  c = Cumulative{};
   c.t = s.t;
   c.i_d = s.i_d;
   c.i_q = s.i_q;
@@ -352,7 +359,6 @@ bool BlockStatistics::add(const Sample& s) {
   // entry means the same); a sample without it counts as the reference.
   if (std::isfinite(s.v_dc) && s.v_dc > 0 && !std::isfinite(bus_reference_)) bus_reference_ = s.v_dc;
   c.bus_ratio = std::isfinite(s.v_dc) && s.v_dc > 0 ? s.v_dc / bus_reference_ - 1.0 : 0.0;
-  const std::size_t cap = ring_.size();
   if (count_ > 0) {
     const Cumulative& p = ring_[(head_ + count_ - 1) % cap];
     const bool delayed = settings_.voltage_delay_samples > 0;
@@ -473,12 +479,8 @@ bool BlockStatistics::add(const Sample& s) {
     c.applied_d = c.applied_prev_d = s.u_d;
     c.applied_q = c.applied_prev_q = s.u_q;
   }
-  if (count_ == cap) {  // drop the oldest
-    head_ = (head_ + 1) % cap;
-    --count_;
-  }
-  ring_[(head_ + count_) % cap] = c;
-  ++count_;
+  if (count_ == cap) head_ = (head_ + 1) % cap;  // the oldest was dropped
+  else ++count_;
   if (count_ < cap) return false;
 
   const Cumulative& a = ring_[head_];  // M periods back
