@@ -6,11 +6,18 @@ identifiers have processed the last samples and published their final estimates.
 the player stays up until none of those topics has had a message for --linger seconds (at most
 --max-linger): a fixed wait lost an identifier's last estimates when the machine was busy.
 Without it, it stays up --linger seconds.
+
+The bag starts paused and is resumed only when every subscriber the master lists for the samples
+(and for each --wait-topic) is connected, as the nodes' own bus information says: a subscriber the
+master already lists can still be connecting, and on a loaded machine two identifiers lost the first
+300 samples that way (their estimates then differed from the live run's all along).
 """
 import argparse
+import os
 import subprocess
 import sys
 import time
+import xmlrpc.client
 
 import rosgraph
 import rospy
@@ -22,6 +29,37 @@ def subscribers(master, topic):
         if name == topic:
             return len(nodes)
     return 0
+
+
+def subscriber_nodes(master, topic):
+    _, subs, _ = master.getSystemState()
+    for name, nodes in subs:
+        if name == topic:
+            return nodes
+    return []
+
+
+def connected(master, node, topic, direction):
+    """Connections of `node` on `topic` in `direction` ('i' in, 'o' out) that its bus info reports up."""
+    try:
+        _, _, bus = xmlrpc.client.ServerProxy(master.lookupNode(node)).getBusInfo("/player")
+    except Exception:  # the node is gone or not answering yet: not connected
+        return 0
+    return sum(1 for c in bus if c[4] == topic and c[2] == direction and (len(c) <= 5 or c[5]))
+
+
+def wait_connected(master, player, topics, timeout):
+    """True once the bag player has a connection to every listed subscriber of the samples and every
+    listed subscriber of each topic has its inbound connection up."""
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        ready = connected(master, player, "/drive/samples_batch", "o") >= len(
+            subscriber_nodes(master, "/drive/samples_batch"))
+        ready = ready and all(connected(master, n, t, "i") >= 1 for t in topics for n in subscriber_nodes(master, t))
+        if ready:
+            return True
+        time.sleep(0.1)
+    return False
 
 
 def main():
@@ -54,9 +92,25 @@ def main():
                 subscribers(master, t) > 0 for t in args.wait_topic):
             break
         time.sleep(0.1)
-    time.sleep(1.0)
-    # -d: wait after advertising, so every subscriber is connected before the first message.
-    code = subprocess.call(["rosbag", "play", "-d", "1"] + play_args)
+    # The bag starts paused; it is resumed once every subscriber is connected (at most 30 s).
+    player = "/bag_player_%d" % os.getpid()
+    play = subprocess.Popen(["rosbag", "play", "--pause"] + play_args + ["__name:=" + player.lstrip("/")])
+    started = time.time()
+    if wait_connected(master, player, args.wait_topic, 30.0):
+        print("play_and_linger: %d subscribers of the samples connected after %.1f s; playing" % (
+            connected(master, player, "/drive/samples_batch", "o"), time.time() - started))
+    else:
+        print("play_and_linger: not every subscriber connected within 30 s; playing anyway", file=sys.stderr)
+    try:
+        from std_srvs.srv import SetBool
+        rospy.wait_for_service(player + "/pause_playback", timeout=30.0)
+        rospy.ServiceProxy(player + "/pause_playback", SetBool)(False)
+    except Exception as e:  # a rosbag without the service (before 1.15): stop, saying why
+        print("play_and_linger: could not resume the bag through %s/pause_playback (%s)" % (player, e),
+              file=sys.stderr)
+        play.kill()
+        return 1
+    code = play.wait()
     played = time.time()
     last_message[0] = max(last_message[0], played)
     if not args.wait_topic:
