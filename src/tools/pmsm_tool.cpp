@@ -478,6 +478,40 @@ void printMonitor(const std::vector<std::string>& methods, const std::vector<std
               " e = seeds that raised it before the fault)\n");
 }
 
+/// FBDAPSO's recognition time against SAPSO's and PSO's, seed by seed (the paper's claim of a faster
+/// convergence is a paired one): in how many seeds it was faster, and the ratio's quartiles over the
+/// seeds where both recognised.
+void printPairedRecognition(const std::vector<std::string>& methods, const std::vector<std::vector<RunResult>>& results) {
+  const auto index = [&methods](const char* name) {
+    return static_cast<std::size_t>(std::find(methods.begin(), methods.end(), std::string(name)) - methods.begin());
+  };
+  const std::size_t a = index("fbdapso");
+  if (a == methods.size()) return;
+  bool header = false;
+  for (const char* other : {"sapso", "pso"}) {
+    const std::size_t b = index(other);
+    if (b == methods.size()) continue;
+    if (!header) std::printf("\nRecognition time paired by seed (FBDAPSO against each; ratio = FBDAPSO / other):\n");
+    header = true;
+    std::vector<double> ratio;
+    int faster = 0, never_a = 0, never_b = 0;
+    for (std::size_t k = 0; k < results[a].size() && k < results[b].size(); ++k) {
+      const double ta = results[a][k].recognition_time, tb = results[b][k].recognition_time;
+      never_a += std::isnan(ta);
+      never_b += std::isnan(tb);
+      if (std::isnan(ta) || std::isnan(tb) || !(tb > 0)) continue;
+      faster += ta < tb;
+      ratio.push_back(ta / tb);
+    }
+    std::sort(ratio.begin(), ratio.end());
+    const std::size_t n = ratio.size();
+    std::printf("  fbdapso/%-6s faster in %d of %zu seeds where both recognised (never: fbdapso %d, %s %d)", other, faster,
+                n, never_a, other, never_b);
+    if (n > 0) std::printf("; ratio median %.2f, quartiles %.2f-%.2f", median(ratio), ratio[n / 4], ratio[3 * n / 4]);
+    std::printf("\n");
+  }
+}
+
 /// bench --fitness paper: the reference optimum of each seed's final window and each method's gap to it.
 void printReference(const std::vector<std::string>& methods, const std::vector<std::vector<RunResult>>& results,
                     const std::vector<ReferenceOptimum>& references, const IdentifierConfig& config) {
@@ -789,6 +823,7 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
   std::printf("\n(* some seeds never stayed within 1 %%; recognition time = first time after which every parameter "
               "flagged identifiable at the end stays within 1 %% of truth)\n");
 
+  printPairedRecognition(methods, results);
   printAlongRun(methods, results, map_roundtrip);
   if (config.fitness != FitnessKind::Block) printReference(methods, results, references, config);
   const double onset = faultOnset(base);

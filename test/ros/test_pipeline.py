@@ -265,6 +265,31 @@ class BenchAndIdentifyInputs(unittest.TestCase):
         self.assertEqual(r.stdout, "")
         self.assertIn("--methods: no method named", r.stderr)
 
+    def test_bench_pairs_recognition_times_by_seed(self):
+        # The printed paired comparison must be the one the per-seed records give.
+        scenario = os.path.join(ROOT, "config", "scenarios", "wc1_drive.yaml")
+        reference = os.path.join(ROOT, "config", "reference", "paper_tables.csv")
+        out = os.path.join(tempfile.mkdtemp(prefix="pmsm_paired_"), "bench.json")
+        r = tool("pmsm_tool", "bench", "--scenario", scenario, "--reference", reference, "--methods",
+                 "fbdapso,sapso,pso", "--seeds", "5", "--json", out)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(out) as f:
+            records = json.load(f)
+        times = {}
+        for rec in records:
+            times.setdefault(rec["method"], {})[rec["seed"]] = rec["recognition_time"]
+        for other in ("sapso", "pso"):
+            pairs = [(times["fbdapso"][s], times[other][s]) for s in sorted(times["fbdapso"])]
+            both = [(a, b) for a, b in pairs if a is not None and b is not None]
+            self.assertGreaterEqual(len(both), 3, pairs)  # wc1_drive: every swarm recognises
+            ratios = sorted(a / b for a, b in both)
+            n = len(ratios)
+            med = ratios[n // 2] if n % 2 else 0.5 * (ratios[n // 2 - 1] + ratios[n // 2])
+            line = "fbdapso/%-6s faster in %d of %d seeds where both recognised" % (
+                other, sum(1 for a, b in both if a < b), n)
+            self.assertIn(line, r.stdout)
+            self.assertIn("ratio median %.2f, quartiles %.2f-%.2f" % (med, ratios[n // 4], ratios[3 * n // 4]), r.stdout)
+
     def test_a_log_in_rpm_and_milliamps_is_read_with_its_units(self):
         tmp = tempfile.mkdtemp(prefix="pmsm_units_")
         scenario = os.path.join(ROOT, "config", "scenarios", "wc1_drive.yaml")
