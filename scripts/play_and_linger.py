@@ -7,10 +7,11 @@ the player stays up until none of those topics has had a message for --linger se
 --max-linger): a fixed wait lost an identifier's last estimates when the machine was busy.
 Without it, it stays up --linger seconds.
 
-The bag starts paused and is resumed only when every subscriber the master lists for the samples
-(and for each --wait-topic) is connected, as the nodes' own bus information says: a subscriber the
-master already lists can still be connecting, and on a loaded machine two identifiers lost the first
-300 samples that way (their estimates then differed from the live run's all along).
+The bag starts paused and is resumed only when every subscriber the master lists for what it plays
+(samples, truth, clock) and for each --wait-topic is connected, as the nodes' own bus information
+says: a subscriber the master already lists can still be connecting. On a loaded machine two
+identifiers lost the first 300 samples that way (their estimates then differed from the live run's
+all along), and a recorder whose clock was not yet connected lost the first half of the estimates.
 """
 import argparse
 import os
@@ -48,13 +49,17 @@ def connected(master, node, topic, direction):
     return sum(1 for c in bus if c[4] == topic and c[2] == direction and (len(c) <= 5 or c[5]))
 
 
+# What the bag player publishes: the samples, the truth and, under simulated time, the clock (a
+# recorder whose clock is not yet connected stamps what it receives with time 0 and cannot write it).
+PLAYED_TOPICS = ("/drive/samples_batch", "/drive/true_parameters", "/clock")
+
+
 def wait_connected(master, player, topics, timeout):
-    """True once the bag player has a connection to every listed subscriber of the samples and every
-    listed subscriber of each topic has its inbound connection up."""
+    """True once the bag player has a connection to every listed subscriber of what it plays and
+    every listed subscriber of each topic has its inbound connection up."""
     deadline = time.time() + timeout
     while time.time() < deadline:
-        ready = connected(master, player, "/drive/samples_batch", "o") >= len(
-            subscriber_nodes(master, "/drive/samples_batch"))
+        ready = all(connected(master, player, t, "o") >= len(subscriber_nodes(master, t)) for t in PLAYED_TOPICS)
         ready = ready and all(connected(master, n, t, "i") >= 1 for t in topics for n in subscriber_nodes(master, t))
         if ready:
             return True
