@@ -24,14 +24,6 @@ import rosgraph
 import rospy
 
 
-def subscribers(master, topic):
-    _, subs, _ = master.getSystemState()
-    for name, nodes in subs:
-        if name == topic:
-            return len(nodes)
-    return 0
-
-
 def subscriber_nodes(master, topic):
     _, subs, _ = master.getSystemState()
     for name, nodes in subs:
@@ -54,11 +46,12 @@ def connected(master, node, topic, direction):
 PLAYED_TOPICS = ("/drive/samples_batch", "/drive/true_parameters", "/clock")
 
 
-def wait_connected(master, player, topics, timeout):
+def wait_connected(master, play, player, topics, timeout):
     """True once the bag player has a connection to every listed subscriber of what it plays and
-    every listed subscriber of each topic has its inbound connection up."""
+    every listed subscriber of each topic has its inbound connection up; False after the timeout or
+    when the player has exited (a bag that cannot be read)."""
     deadline = time.time() + timeout
-    while time.time() < deadline:
+    while time.time() < deadline and play.poll() is None:
         ready = all(connected(master, player, t, "o") >= len(subscriber_nodes(master, t)) for t in PLAYED_TOPICS)
         ready = ready and all(connected(master, n, t, "i") >= 1 for t in topics for n in subscriber_nodes(master, t))
         if ready:
@@ -93,17 +86,20 @@ def main():
             rospy.Subscriber(topic, rospy.AnyMsg, seen)
     deadline = time.time() + 20.0
     while time.time() < deadline:
-        if subscribers(master, "/drive/samples_batch") >= args.wait_subscribers and all(
-                subscribers(master, t) > 0 for t in args.wait_topic):
+        if len(subscriber_nodes(master, "/drive/samples_batch")) >= args.wait_subscribers and all(
+                len(subscriber_nodes(master, t)) > 0 for t in args.wait_topic):
             break
         time.sleep(0.1)
     # The bag starts paused; it is resumed once every subscriber is connected (at most 30 s).
     player = "/bag_player_%d" % os.getpid()
     play = subprocess.Popen(["rosbag", "play", "--pause"] + play_args + ["__name:=" + player.lstrip("/")])
     started = time.time()
-    if wait_connected(master, player, args.wait_topic, 30.0):
+    if wait_connected(master, play, player, args.wait_topic, 30.0):
         print("play_and_linger: %d subscribers of the samples connected after %.1f s; playing" % (
             connected(master, player, "/drive/samples_batch", "o"), time.time() - started))
+    elif play.poll() is not None:
+        print("play_and_linger: rosbag play exited with code %d before playing" % play.returncode, file=sys.stderr)
+        return play.returncode or 1
     else:
         print("play_and_linger: not every subscriber connected within 30 s; playing anyway", file=sys.stderr)
     try:
