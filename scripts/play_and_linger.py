@@ -24,12 +24,10 @@ import rosgraph
 import rospy
 
 
-def subscriber_nodes(master, topic):
+def subscribers_by_topic(master):
+    """Every topic's subscribing nodes, as the master lists them (one query)."""
     _, subs, _ = master.getSystemState()
-    for name, nodes in subs:
-        if name == topic:
-            return nodes
-    return []
+    return {name: nodes for name, nodes in subs}
 
 
 def connected(master, node, topic, direction):
@@ -52,8 +50,9 @@ def wait_connected(master, play, player, topics, timeout):
     when the player has exited (a bag that cannot be read)."""
     deadline = time.time() + timeout
     while time.time() < deadline and play.poll() is None:
-        ready = all(connected(master, player, t, "o") >= len(subscriber_nodes(master, t)) for t in PLAYED_TOPICS)
-        ready = ready and all(connected(master, n, t, "i") >= 1 for t in topics for n in subscriber_nodes(master, t))
+        subs = subscribers_by_topic(master)
+        ready = all(connected(master, player, t, "o") >= len(subs.get(t, [])) for t in PLAYED_TOPICS)
+        ready = ready and all(connected(master, n, t, "i") >= 1 for t in topics for n in subs.get(t, []))
         if ready:
             return True
         time.sleep(0.1)
@@ -86,8 +85,9 @@ def main():
             rospy.Subscriber(topic, rospy.AnyMsg, seen)
     deadline = time.time() + 20.0
     while time.time() < deadline:
-        if len(subscriber_nodes(master, "/drive/samples_batch")) >= args.wait_subscribers and all(
-                len(subscriber_nodes(master, t)) > 0 for t in args.wait_topic):
+        subs = subscribers_by_topic(master)
+        if len(subs.get("/drive/samples_batch", [])) >= args.wait_subscribers and all(
+                subs.get(t) for t in args.wait_topic):
             break
         time.sleep(0.1)
     # The bag starts paused; it is resumed once every subscriber is connected (at most 30 s).

@@ -209,16 +209,12 @@ class ParticleSwarm {
     for (int d = 0; d < kParameterCount; ++d) p[d] = lower_[d] + u[d] * span_[d];
     return p;
   }
-  ParameterVector parametersOf(const std::vector<double>& a, std::size_t i) const {
-    ParameterVector p;
-    for (int d = 0; d < kParameterCount; ++d) p[d] = lower_[d] + at(a, d, i) * span_[d];
-    return p;
-  }
   Point pointOf(const std::vector<double>& a, std::size_t i) const {
     Point u;
     for (int d = 0; d < kParameterCount; ++d) u[d] = at(a, d, i);
     return u;
   }
+  ParameterVector parametersOf(const std::vector<double>& a, std::size_t i) const { return toParameters(pointOf(a, i)); }
   void restartCycle(const Fitness& f);
   /// Eq. (4) for every particle: velocities and candidate positions (move_x_, move_v_) from this
   /// iteration's draws r_.
