@@ -366,7 +366,8 @@ class BlockStatistics {
   BlockD long_last_d_ = BlockD::Zero();
   BlockQ long_last_q_ = BlockQ::Zero();
   bool have_long_block_ = false;
-  std::uint64_t blocks_in_stretch_ = 0;
+  std::uint64_t blocks_since_long_block_ = 0;  // blocks of this stretch since its last long-window block (< M)
+  std::size_t blocks_since_rebase_ = 0;        // blocks since the running integrals were last rebased (< M + 1)
   BlockD last_d_ = BlockD::Zero();
   BlockQ last_q_ = BlockQ::Zero();
 };

@@ -24,12 +24,13 @@ void BlockStatistics::reset() {
   weight_ = difference_weight_ = 0.0;
   scale_ = 1.0;
   blocks_ = 0;
+  blocks_since_rebase_ = 0;
   have_previous_block_ = false;
   long_d_.setZero();
   long_q_.setZero();
   long_weight_ = 0.0;
   have_long_block_ = false;
-  blocks_in_stretch_ = 0;
+  blocks_since_long_block_ = 0;
   N_.setZero();
   C_d_.setZero();
   C_q_.setZero();
@@ -81,7 +82,7 @@ void BlockStatistics::breakContinuity() {
   count_ = 0;
   have_previous_block_ = false;
   have_long_block_ = false;
-  blocks_in_stretch_ = 0;
+  blocks_since_long_block_ = 0;
 }
 
 namespace {
@@ -335,8 +336,10 @@ bool BlockStatistics::add(const Sample& s) {
   if (block_samples_ == 0) throw std::logic_error("BlockStatistics::add before configure()");
   // The new entry is written in place: into the free slot, or over the oldest entry once the ring
   // is full (nothing below reads the oldest before it is dropped).
+  // (Ring positions wrap by a comparison: a division per position was a tenth of this update.)
   const std::size_t cap = ring_.size();
-  Cumulative& c = ring_[(head_ + count_) % cap];
+  const auto wrap = [cap](std::size_t k) { return k < cap ? k : k - cap; };  // k < 2 cap
+  Cumulative& c = ring_[wrap(head_ + count_)];
   c = Cumulative{};
   c.t = s.t;
   c.i_d = s.i_d;
@@ -360,7 +363,7 @@ bool BlockStatistics::add(const Sample& s) {
   if (std::isfinite(s.v_dc) && s.v_dc > 0 && !std::isfinite(bus_reference_)) bus_reference_ = s.v_dc;
   c.bus_ratio = std::isfinite(s.v_dc) && s.v_dc > 0 ? s.v_dc / bus_reference_ - 1.0 : 0.0;
   if (count_ > 0) {
-    const Cumulative& p = ring_[(head_ + count_ - 1) % cap];
+    const Cumulative& p = ring_[wrap(head_ + count_ - 1)];
     const bool delayed = settings_.voltage_delay_samples > 0;
     const double dt = s.t - p.t;
     c.applied_d = delayed ? p.u_d : s.u_d;
@@ -479,7 +482,7 @@ bool BlockStatistics::add(const Sample& s) {
     c.applied_d = c.applied_prev_d = s.u_d;
     c.applied_q = c.applied_prev_q = s.u_q;
   }
-  if (count_ == cap) head_ = (head_ + 1) % cap;  // the oldest was dropped
+  if (count_ == cap) head_ = wrap(head_ + 1);  // the oldest was dropped
   else ++count_;
   if (count_ < cap) return false;
 
@@ -533,7 +536,8 @@ bool BlockStatistics::add(const Sample& s) {
   // Every M-th block of a stretch: consecutive non-overlapping blocks, and the long window keeps
   // their differences. Differencing removes what varies slowly (a drifting R_s or psi_f would
   // otherwise bias a constant-parameter fit over seconds) and keeps the steps.
-  if (++blocks_in_stretch_ % static_cast<std::uint64_t>(block_samples_) == 0) {
+  if (++blocks_since_long_block_ == static_cast<std::uint64_t>(block_samples_)) {
+    blocks_since_long_block_ = 0;
     if (have_long_block_) {
       const BlockD dd = zd - long_last_d_;
       const BlockQ dq = zq - long_last_q_;
@@ -556,7 +560,8 @@ bool BlockStatistics::add(const Sample& s) {
     have_long_block_ = true;
   }
   // Keep the running integrals small: rebase on the oldest entry once per block length (exact).
-  if (blocks_ % static_cast<std::uint64_t>(cap) == 0) {
+  if (++blocks_since_rebase_ == cap) {
+    blocks_since_rebase_ = 0;
     const Cumulative base = ring_[head_];
     for (Cumulative& e : ring_) {
       e.I_d -= base.I_d; e.I_q -= base.I_q; e.OmIq -= base.OmIq; e.OmId -= base.OmId;

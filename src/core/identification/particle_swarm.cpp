@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
 #include <stdexcept>
 
 #include "vector_clones.hpp"
@@ -17,13 +20,15 @@ namespace pmsm_param_id {
 namespace {
 std::size_t roundUp(std::size_t n) { return (n + kSwarmLanes - 1) / kSwarmLanes * kSwarmLanes; }
 
+// ---- The loops (inlined into the cloned steps below) ----
+
 /// Eq. (4) for one coordinate of every particle (gbest: the global best's coordinate), with the
 /// velocity limit and the box's faces.
-PMSM_VECTOR_CLONES
-void moveAll(std::size_t n, double inertia, double c1, double c2, double v_max, double gbest,
-             const double* __restrict x, const double* __restrict v, const double* __restrict pbest,
-             const double* __restrict r1, const double* __restrict r2, double* __restrict move_x,
-             double* __restrict move_v) {
+PMSM_INLINE_LOOP void moveCoordinate(std::size_t n, double inertia, double c1, double c2, double v_max, double gbest,
+                                     const double* __restrict x, const double* __restrict v,
+                                     const double* __restrict pbest, const double* __restrict r1,
+                                     const double* __restrict r2, double* __restrict move_x,
+                                     double* __restrict move_v) {
   for (std::size_t j = 0; j < n; ++j) {
     double vj = inertia * v[j] + c1 * r1[j] * (pbest[j] - x[j]) + c2 * r2[j] * (gbest - x[j]);
     vj = std::min(std::max(vj, -v_max), v_max);
@@ -34,6 +39,33 @@ void moveAll(std::size_t n, double inertia, double c1, double c2, double v_max, 
   }
 }
 
+/// metropolisAccepts(x[i], r[i]) where candidate[i] is 1 (0 elsewhere): the bounds decide in the
+/// vector loop; the rare lanes between them (marked 0.5) go to exp() one by one.
+PMSM_INLINE_LOOP void metropolisDecisions(std::size_t n, const double* __restrict x, const double* __restrict r,
+                                          const double* __restrict candidate, double* __restrict decision) {
+  for (std::size_t i = 0; i < n; ++i) {
+    const double bounded = metropolisBoundsVerdict(x[i], r[i]);
+    decision[i] = candidate[i] > 0.5 ? bounded : 0.0;
+  }
+  for (std::size_t i = 0; i < n; ++i)
+    if (decision[i] == 0.5) decision[i] = std::exp(-x[i]) > r[i] ? 1.0 : 0.0;
+}
+
+// ---- One cloned function per step of an iteration ----
+
+/// Eq. (4) for every coordinate of every particle (entry [d * n + i], gbest by coordinate).
+PMSM_VECTOR_CLONES
+void moveAll(std::size_t n, double inertia, double c1, double c2, double v_max, const double* __restrict gbest,
+             const double* __restrict x, const double* __restrict v, const double* __restrict pbest,
+             const double* __restrict r1, const double* __restrict r2, double* __restrict move_x,
+             double* __restrict move_v) {
+  for (int d = 0; d < kParameterCount; ++d) {
+    const std::size_t o = static_cast<std::size_t>(d) * n;
+    moveCoordinate(n, inertia, c1, c2, v_max, gbest[d], x + o, v + o, pbest + o, r1 + o, r2 + o, move_x + o,
+                   move_v + o);
+  }
+}
+
 /// Eq. (15): the fitness increase relative to the global best.
 PMSM_VECTOR_CLONES
 void increaseAll(std::size_t n, const double* __restrict f_new, const double* __restrict f_old, double scale,
@@ -41,39 +73,34 @@ void increaseAll(std::size_t n, const double* __restrict f_new, const double* __
   for (std::size_t i = 0; i < n; ++i) delta[i] = (f_new[i] - f_old[i]) / scale;
 }
 
-/// metropolisAccepts(x[i], r[i]) where candidate[i] is 1 (0 elsewhere): the bounds decide in the
-/// vector loop; the rare lanes between them (marked 0.5) go to exp() one by one.
+/// SAPSO (Eq. 16): better or equal always; worse by the Metropolis test at x = delta / T.
 PMSM_VECTOR_CLONES
-void metropolisBounds(std::size_t n, const double* __restrict x, const double* __restrict r,
-                      const double* __restrict candidate, double* __restrict decision) {
+void metropolisAcceptAll(std::size_t n, const double* __restrict delta, const double* __restrict T,
+                         const double* __restrict r, double* __restrict x, double* __restrict worse,
+                         double* __restrict accepted) {
   for (std::size_t i = 0; i < n; ++i) {
-    const double bounded = metropolisBoundsVerdict(x[i], r[i]);
-    decision[i] = candidate[i] > 0.5 ? bounded : 0.0;
+    x[i] = delta[i] / T[i];
+    worse[i] = delta[i] > 0.0 ? 1.0 : 0.0;
   }
-}
-void metropolisAll(std::size_t n, const double* x, const double* r, const double* candidate, double* decision) {
-  metropolisBounds(n, x, r, candidate, decision);
-  for (std::size_t i = 0; i < n; ++i)
-    if (decision[i] == 0.5) decision[i] = std::exp(-x[i]) > r[i] ? 1.0 : 0.0;
+  metropolisDecisions(n, x, r, worse, accepted);
+  for (std::size_t i = 0; i < n; ++i) accepted[i] = delta[i] <= 0.0 ? 1.0 : accepted[i];
 }
 
-/// Eq. (17)'s argument of the Metropolis test and whether it applies (the move is not better).
+/// FBDAPSO (Eq. 17, 7-8): better moves are taken and anneal; the others face the Metropolis test at
+/// x = delta / T (delta = 0 counts as zero_delta; NaN: not better, and rejected by the test), and
+/// accepted worse ones temper first (C2^d T2 with d counted on) and then anneal; rejected ones
+/// leave T as it is.
 PMSM_VECTOR_CLONES
-void backfireArguments(std::size_t n, const double* __restrict delta, const double* __restrict T, double zero_delta,
-                       double* __restrict x, double* __restrict not_better) {
+void backfireAcceptAll(std::size_t n, const double* __restrict delta, const double* __restrict r, double zero_delta,
+                       double C1, double C2, double T2, double* __restrict T, double* __restrict c2_power,
+                       double* __restrict accepted_worse, double* __restrict x, double* __restrict not_better,
+                       double* __restrict tempered, double* __restrict accepted) {
   for (std::size_t i = 0; i < n; ++i) {
     const double d = delta[i] == 0.0 ? zero_delta : delta[i];
     x[i] = d / T[i];
-    not_better[i] = delta[i] < 0.0 ? 0.0 : 1.0;  // NaN: not better, and rejected by the test
+    not_better[i] = delta[i] < 0.0 ? 0.0 : 1.0;
   }
-}
-
-/// FBDAPSO's temperatures (Eq. 7-8) after the decisions: better moves anneal, accepted worse ones
-/// temper first (C2^d T2 with d counted on) and then anneal, rejected ones leave T as it is.
-PMSM_VECTOR_CLONES
-void backfireTemperatures(std::size_t n, double C1, double C2, double T2, const double* __restrict not_better,
-                          const double* __restrict tempered, double* __restrict T, double* __restrict c2_power,
-                          double* __restrict accepted_worse, double* __restrict accepted) {
+  metropolisDecisions(n, x, r, not_better, tempered);
   for (std::size_t i = 0; i < n; ++i) {
     const bool better = not_better[i] < 0.5, worse_taken = tempered[i] > 0.5;
     const double c2_next = c2_power[i] * C2;
@@ -86,41 +113,80 @@ void backfireTemperatures(std::size_t n, double C1, double C2, double T2, const 
   }
 }
 
-/// SAPSO's Metropolis argument (Eq. 16) and whether it applies (the move is worse).
-PMSM_VECTOR_CLONES
-void metropolisArguments(std::size_t n, const double* __restrict delta, const double* __restrict T,
-                         double* __restrict x, double* __restrict worse) {
-  for (std::size_t i = 0; i < n; ++i) {
-    x[i] = delta[i] / T[i];
-    worse[i] = delta[i] > 0.0 ? 1.0 : 0.0;
-  }
-}
-PMSM_VECTOR_CLONES
-void orNotWorse(std::size_t n, const double* __restrict delta, double* __restrict accepted) {
-  for (std::size_t i = 0; i < n; ++i) accepted[i] = delta[i] <= 0.0 ? 1.0 : accepted[i];
-}
 PMSM_VECTOR_CLONES
 void scaleAll(std::size_t n, double factor, double* __restrict a) {
   for (std::size_t i = 0; i < n; ++i) a[i] *= factor;
 }
 
-/// Accepted moves take their fitness; those better than their personal best replace it.
+/// What an iteration's decisions leave to tell (ParticleSwarm::settleMoves).
+struct Settled {
+  std::size_t best;        ///< the particle whose move is the new global best (n: none)
+  std::uint64_t worse_proposed, worse_accepted;
+};
+
+// Four particles at once as GCC/Clang vectors (one AVX register, two SSE2 ones). A comparison gives
+// a mask of all-one or all-zero lanes, and selects are bitwise, so that the SSE2 baseline (which has
+// no 64-bit integer compare) needs no branch either.
+typedef double Lanes4 __attribute__((vector_size(8 * kSwarmLanes)));
+typedef std::int64_t Mask4 __attribute__((vector_size(8 * kSwarmLanes)));
+PMSM_INLINE_LOOP Lanes4 load4(const double* p) {
+  Lanes4 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+PMSM_INLINE_LOOP void store4(double* p, Lanes4 v) { std::memcpy(p, &v, sizeof v); }
+/// mask ? a : b, lane by lane.
+PMSM_INLINE_LOOP Lanes4 select4(Mask4 mask, Lanes4 a, Lanes4 b) {
+  return reinterpret_cast<Lanes4>((reinterpret_cast<Mask4>(a) & mask) | (reinterpret_cast<Mask4>(b) & ~mask));
+}
+
+/// Accepted moves take their position, velocity and fitness; those better than their personal best
+/// replace it; the best of those replaces the global best f_gbest where it is lower (the first such
+/// particle on a tie, as a particle-by-particle search with `<` finds). Arrays by coordinate, n
+/// padded (padding particles never improve: their fitness stays infinite); `count` real particles.
+/// Four particles at a time with all their coordinates, in registers.
 PMSM_VECTOR_CLONES
-void takeFitness(std::size_t n, const double* __restrict accepted, const double* __restrict f_new,
-                 double* __restrict f, double* __restrict f_pbest, double* __restrict improved) {
-  for (std::size_t i = 0; i < n; ++i) {
-    const bool taken = accepted[i] > 0.5;
-    const bool better = taken & (f_new[i] < f_pbest[i]);
-    f[i] = taken ? f_new[i] : f[i];
-    f_pbest[i] = better ? f_new[i] : f_pbest[i];
-    improved[i] = better ? 1.0 : 0.0;
+Settled settleMoves(std::size_t n, std::size_t count, const double* __restrict accepted,
+                    const double* __restrict delta, const double* __restrict move_f,
+                    const double* __restrict move_x, const double* __restrict move_v, double f_gbest,
+                    double* __restrict f, double* __restrict f_pbest, double* __restrict improved,
+                    double* __restrict x, double* __restrict v, double* __restrict pbest) {
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  const Lanes4 half = {0.5, 0.5, 0.5, 0.5}, one = {1.0, 1.0, 1.0, 1.0}, zero = {};
+  Lanes4 lowest = {inf, inf, inf, inf};  // the lowest improved move per lane
+  for (std::size_t i = 0; i < n; i += kSwarmLanes) {
+    const Lanes4 moved = load4(move_f + i), own_best = load4(f_pbest + i);
+    const Mask4 taken = load4(accepted + i) > half;
+    const Mask4 better = taken & (moved < own_best);
+    store4(f + i, select4(taken, moved, load4(f + i)));
+    store4(f_pbest + i, select4(better, moved, own_best));
+    store4(improved + i, select4(better, one, zero));
+    lowest = select4(better & (moved < lowest), moved, lowest);  // an improved move is never NaN
+    for (int d = 0; d < kParameterCount; ++d) {
+      const std::size_t o = static_cast<std::size_t>(d) * n + i;
+      const Lanes4 candidate = load4(move_x + o);
+      store4(x + o, select4(taken, candidate, load4(x + o)));
+      store4(v + o, select4(taken, load4(move_v + o), load4(v + o)));
+      store4(pbest + o, select4(better, candidate, load4(pbest + o)));
+    }
   }
+  Settled out{count, 0, 0};
+  for (std::size_t i = 0; i < count; ++i) {
+    const bool worse = delta[i] > 0;
+    out.worse_proposed += worse;
+    out.worse_accepted += worse & (accepted[i] > 0.5);
+  }
+  const double best = std::min(std::min(lowest[0], lowest[1]), std::min(lowest[2], lowest[3]));
+  if (best < f_gbest) {
+    for (std::size_t i = 0; i < count; ++i)
+      if (improved[i] > 0.5 && move_f[i] == best) {
+        out.best = i;
+        break;
+      }
+  }
+  return out;
 }
-/// to[i] = from[i] where flag[i] is 1.
-PMSM_VECTOR_CLONES
-void copyWhere(std::size_t n, const double* __restrict flag, const double* __restrict from, double* __restrict to) {
-  for (std::size_t i = 0; i < n; ++i) to[i] = flag[i] > 0.5 ? from[i] : to[i];
-}
+static_assert(kSwarmLanes == 4, "settleMoves works on four particles at a time");
 
 /// Scratch for the policies' batch decisions (the swarm's size rarely exceeds a few dozen).
 struct Scratch {
@@ -164,9 +230,7 @@ void AlwaysAccept::acceptAll(std::size_t n, const double*, const double*, SwarmT
 void MetropolisAcceptance::acceptAll(std::size_t n, const double* delta, const double* r, SwarmTemperatures& th,
                                      double* accepted) const {
   Scratch& s = scratch(n);
-  metropolisArguments(n, delta, th.T.data(), s.x.data(), s.applies.data());
-  metropolisAll(n, s.x.data(), r, s.applies.data(), accepted);
-  orNotWorse(n, delta, accepted);  // Eq. (16): better or equal always
+  metropolisAcceptAll(n, delta, th.T.data(), r, s.x.data(), s.applies.data(), accepted);
 }
 
 void MetropolisAcceptance::endIterationAll(std::size_t n, SwarmTemperatures& th) const {
@@ -176,10 +240,8 @@ void MetropolisAcceptance::endIterationAll(std::size_t n, SwarmTemperatures& th)
 void BackfireDoubleAnnealing::acceptAll(std::size_t n, const double* delta, const double* r, SwarmTemperatures& th,
                                         double* accepted) const {
   Scratch& s = scratch(n);
-  backfireArguments(n, delta, th.T.data(), zero_delta_, s.x.data(), s.applies.data());
-  metropolisAll(n, s.x.data(), r, s.applies.data(), s.decision.data());
-  backfireTemperatures(n, C1_, C2_, T2_, s.applies.data(), s.decision.data(), th.T.data(), th.c2_power.data(),
-                       th.accepted_worse.data(), accepted);
+  backfireAcceptAll(n, delta, r, zero_delta_, C1_, C2_, T2_, th.T.data(), th.c2_power.data(),
+                    th.accepted_worse.data(), s.x.data(), s.applies.data(), s.decision.data(), accepted);
 }
 
 ParticleSwarm::ParticleSwarm(const SwarmSettings& settings, std::shared_ptr<const AcceptancePolicy> policy,
@@ -231,11 +293,8 @@ void ParticleSwarm::proposeMoves(double inertia) {
   // data).
   rng_.fill(r_.data(), r_.size());
   const std::size_t entries = padded_ * kParameterCount;
-  for (int d = 0; d < kParameterCount; ++d) {
-    const std::size_t o = static_cast<std::size_t>(d) * padded_;
-    moveAll(padded_, inertia, s_.c1, s_.c2, s_.v_max, gbest_[d], x_.data() + o, v_.data() + o, pbest_.data() + o,
-            r_.data() + o, r_.data() + entries + o, move_x_.data() + o, move_v_.data() + o);
-  }
+  moveAll(padded_, inertia, s_.c1, s_.c2, s_.v_max, gbest_.data(), x_.data(), v_.data(), pbest_.data(), r_.data(),
+          r_.data() + entries, move_x_.data(), move_v_.data());
 }
 
 void ParticleSwarm::acceptMoves() {
@@ -244,25 +303,17 @@ void ParticleSwarm::acceptMoves() {
   increaseAll(padded, move_f_.data(), f_.data(), scale, delta_.data());
   std::fill(delta_.begin() + static_cast<std::ptrdiff_t>(n), delta_.end(), std::numeric_limits<double>::infinity());
   policy_->acceptAll(padded, delta_.data(), r_.data() + 2 * padded * kParameterCount, th_, accepted_.data());
-  takeFitness(padded, accepted_.data(), move_f_.data(), f_.data(), f_pbest_.data(), improved_.data());
-  for (int d = 0; d < kParameterCount; ++d) {
-    const std::size_t o = static_cast<std::size_t>(d) * padded;
-    copyWhere(padded, accepted_.data(), move_x_.data() + o, x_.data() + o);
-    copyWhere(padded, accepted_.data(), move_v_.data() + o, v_.data() + o);
-    copyWhere(padded, improved_.data(), move_x_.data() + o, pbest_.data() + o);
+  // The moves, personal bests, the global best, and what tells the policies apart: moves to a
+  // worse position proposed and taken.
+  const Settled settled = settleMoves(padded, n, accepted_.data(), delta_.data(), move_f_.data(), move_x_.data(),
+                                      move_v_.data(), f_gbest_, f_.data(), f_pbest_.data(), improved_.data(),
+                                      x_.data(), v_.data(), pbest_.data());
+  worse_proposed_ += settled.worse_proposed;
+  worse_accepted_ += settled.worse_accepted;
+  if (settled.best < n) {
+    f_gbest_ = move_f_[settled.best];
+    gbest_ = pointOf(move_x_, settled.best);
   }
-  // The global best, and what tells the policies apart: moves to a worse position proposed and taken.
-  std::size_t best = n;
-  for (std::size_t i = 0; i < n; ++i) {
-    const bool worse = delta_[i] > 0;
-    worse_proposed_ += worse;
-    worse_accepted_ += worse & (accepted_[i] > 0.5);
-    if (improved_[i] > 0.5 && move_f_[i] < f_gbest_) {
-      f_gbest_ = move_f_[i];
-      best = i;
-    }
-  }
-  if (best < n) gbest_ = pointOf(move_x_, best);
   policy_->endIterationAll(padded, th_);
 }
 

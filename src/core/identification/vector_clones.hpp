@@ -2,10 +2,20 @@
 // register) and for the baseline (SSE2, two); the loader picks the one the CPU runs (GCC's
 // target_clones, through an ifunc). Neither clone enables FMA, so both give the same numbers.
 // Elsewhere (Clang, ARM) the baseline alone.
+//
+// A cloned function is called through the loader's choice (an indirect call) and sets up each loop
+// anew, so one step of the swarm is one cloned function whose loops are PMSM_INLINE_LOOP helpers
+// (inlined into each clone, and compiled there for its instruction set).
 #pragma once
 
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__linux__)
 #define PMSM_VECTOR_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define PMSM_VECTOR_CLONES
+#endif
+
+#if defined(__GNUC__)
+#define PMSM_INLINE_LOOP inline __attribute__((always_inline))
+#else
+#define PMSM_INLINE_LOOP inline
 #endif
