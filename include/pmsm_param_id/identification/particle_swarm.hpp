@@ -216,8 +216,8 @@ class ParticleSwarm {
   }
   ParameterVector parametersOf(const std::vector<double>& a, std::size_t i) const { return toParameters(pointOf(a, i)); }
   void restartCycle(const Fitness& f);
-  /// Eq. (4) for every particle: velocities and candidate positions (move_x_, move_v_) from this
-  /// iteration's draws r_.
+  /// Eq. (4) for every particle: velocities and candidate positions (move_x_, move_v_, and in
+  /// parameter units batch_points_) from this iteration's draws r_.
   void proposeMoves(double inertia);
   /// Eq. (15)-(17) for every particle (move_f_ holds the candidates' fitness), then the moves,
   /// personal bests and the global best.
@@ -234,7 +234,7 @@ class ParticleSwarm {
   std::vector<double> accepted_, improved_;    // flags: 1 or 0
   std::vector<double> move_x_, move_v_, move_f_;  // this iteration's candidates (reused, no allocation)
   std::vector<double> r_;  // this iteration's draws: r1, r2 (by dimension), the Metropolis r per particle
-  std::vector<ParameterVector> batch_points_;  // the candidates in parameter units
+  std::vector<ParameterVector> batch_points_;  // the candidates in parameter units (padded)
   /// F has batch(const ParameterVector*, size_t, double*): every particle in one call.
   template <class F, class = void>
   struct HasBatch : std::false_type {};
@@ -258,7 +258,6 @@ void ParticleSwarm::iterate(const F& f) {
   //    synchronous (gbest changes at the end of the iteration), so the order does not matter, and
   //    20 independent evaluations back to back keep the CPU busy.
   proposeMoves(w);
-  for (std::size_t i = 0; i < n; ++i) batch_points_[i] = parametersOf(move_x_, i);
   if constexpr (HasBatch<F>::value) {  // all particles at once (the output-error fitness)
     f.batch(batch_points_.data(), n, move_f_.data());
   } else {

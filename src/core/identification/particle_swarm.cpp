@@ -20,24 +20,24 @@ namespace pmsm_param_id {
 namespace {
 std::size_t roundUp(std::size_t n) { return (n + kSwarmLanes - 1) / kSwarmLanes * kSwarmLanes; }
 
-// ---- The loops (inlined into the cloned steps below) ----
-
-/// Eq. (4) for one coordinate of every particle (gbest: the global best's coordinate), with the
-/// velocity limit and the box's faces.
-PMSM_INLINE_LOOP void moveCoordinate(std::size_t n, double inertia, double c1, double c2, double v_max, double gbest,
-                                     const double* __restrict x, const double* __restrict v,
-                                     const double* __restrict pbest, const double* __restrict r1,
-                                     const double* __restrict r2, double* __restrict move_x,
-                                     double* __restrict move_v) {
-  for (std::size_t j = 0; j < n; ++j) {
-    double vj = inertia * v[j] + c1 * r1[j] * (pbest[j] - x[j]) + c2 * r2[j] * (gbest - x[j]);
-    vj = std::min(std::max(vj, -v_max), v_max);
-    const double xj = x[j] + vj;
-    const bool outside = (xj < 0.0) | (xj > 1.0);  // on a face: stop there
-    move_x[j] = std::min(std::max(xj, 0.0), 1.0);
-    move_v[j] = outside ? 0.0 : vj;
-  }
+// Four particles at once as GCC/Clang vectors (one AVX register, two SSE2 ones). A comparison gives
+// a mask of all-one or all-zero lanes, and selects are bitwise, so that the SSE2 baseline (which has
+// no 64-bit integer compare) needs no branch either.
+typedef double Lanes4 __attribute__((vector_size(8 * kSwarmLanes)));
+typedef std::int64_t Mask4 __attribute__((vector_size(8 * kSwarmLanes)));
+PMSM_INLINE_LOOP Lanes4 load4(const double* p) {
+  Lanes4 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
 }
+PMSM_INLINE_LOOP void store4(double* p, Lanes4 v) { std::memcpy(p, &v, sizeof v); }
+/// mask ? a : b, lane by lane.
+PMSM_INLINE_LOOP Lanes4 select4(Mask4 mask, Lanes4 a, Lanes4 b) {
+  return reinterpret_cast<Lanes4>((reinterpret_cast<Mask4>(a) & mask) | (reinterpret_cast<Mask4>(b) & ~mask));
+}
+static_assert(kSwarmLanes == 4, "the swarm's steps work on four particles at a time");
+
+// ---- The loops (inlined into the cloned steps below) ----
 
 /// metropolisAccepts(x[i], r[i]) where candidate[i] is 1 (0 elsewhere): the bounds decide in the
 /// vector loop; the rare lanes between them (marked 0.5) go to exp() one by one.
@@ -53,16 +53,34 @@ PMSM_INLINE_LOOP void metropolisDecisions(std::size_t n, const double* __restric
 
 // ---- One cloned function per step of an iteration ----
 
-/// Eq. (4) for every coordinate of every particle (entry [d * n + i], gbest by coordinate).
+/// Eq. (4) for every particle (arrays by coordinate, entry [d * n + i]; gbest by coordinate), with
+/// the velocity limit and the box's faces; the candidates also in parameter units, particle by
+/// particle (points[i][d] = lower[d] + move_x * span[d]). Four particles at a time with all their
+/// coordinates, in registers.
 PMSM_VECTOR_CLONES
 void moveAll(std::size_t n, double inertia, double c1, double c2, double v_max, const double* __restrict gbest,
-             const double* __restrict x, const double* __restrict v, const double* __restrict pbest,
-             const double* __restrict r1, const double* __restrict r2, double* __restrict move_x,
-             double* __restrict move_v) {
-  for (int d = 0; d < kParameterCount; ++d) {
-    const std::size_t o = static_cast<std::size_t>(d) * n;
-    moveCoordinate(n, inertia, c1, c2, v_max, gbest[d], x + o, v + o, pbest + o, r1 + o, r2 + o, move_x + o,
-                   move_v + o);
+             const double* __restrict lower, const double* __restrict span, const double* __restrict x,
+             const double* __restrict v, const double* __restrict pbest, const double* __restrict r1,
+             const double* __restrict r2, double* __restrict move_x, double* __restrict move_v,
+             ParameterVector* __restrict points) {
+  const Lanes4 zero = {}, one = {1.0, 1.0, 1.0, 1.0}, limit = Lanes4{} + v_max, w = Lanes4{} + inertia;
+  const Lanes4 k1 = Lanes4{} + c1, k2 = Lanes4{} + c2;
+  for (std::size_t i = 0; i < n; i += kSwarmLanes) {
+    for (int d = 0; d < kParameterCount; ++d) {
+      const std::size_t o = static_cast<std::size_t>(d) * n + i;
+      const Lanes4 xd = load4(x + o);
+      Lanes4 vd = w * load4(v + o) + k1 * load4(r1 + o) * (load4(pbest + o) - xd) + k2 * load4(r2 + o) * (gbest[d] - xd);
+      vd = select4(vd < -limit, -limit, vd);  // std::max(vd, -v_max)
+      vd = select4(limit < vd, limit, vd);    // std::min(vd, v_max)
+      const Lanes4 moved = xd + vd;
+      const Mask4 outside = (moved < zero) | (moved > one);  // on a face: stop there
+      Lanes4 clamped = select4(moved < zero, zero, moved);
+      clamped = select4(one < clamped, one, clamped);
+      store4(move_x + o, clamped);
+      store4(move_v + o, select4(outside, zero, vd));
+      const Lanes4 value = lower[d] + clamped * span[d];
+      for (std::size_t l = 0; l < kSwarmLanes; ++l) points[i + l][d] = value[l];
+    }
   }
 }
 
@@ -124,22 +142,6 @@ struct Settled {
   std::uint64_t worse_proposed, worse_accepted;
 };
 
-// Four particles at once as GCC/Clang vectors (one AVX register, two SSE2 ones). A comparison gives
-// a mask of all-one or all-zero lanes, and selects are bitwise, so that the SSE2 baseline (which has
-// no 64-bit integer compare) needs no branch either.
-typedef double Lanes4 __attribute__((vector_size(8 * kSwarmLanes)));
-typedef std::int64_t Mask4 __attribute__((vector_size(8 * kSwarmLanes)));
-PMSM_INLINE_LOOP Lanes4 load4(const double* p) {
-  Lanes4 v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
-PMSM_INLINE_LOOP void store4(double* p, Lanes4 v) { std::memcpy(p, &v, sizeof v); }
-/// mask ? a : b, lane by lane.
-PMSM_INLINE_LOOP Lanes4 select4(Mask4 mask, Lanes4 a, Lanes4 b) {
-  return reinterpret_cast<Lanes4>((reinterpret_cast<Mask4>(a) & mask) | (reinterpret_cast<Mask4>(b) & ~mask));
-}
-
 /// Accepted moves take their position, velocity and fitness; those better than their personal best
 /// replace it; the best of those replaces the global best f_gbest where it is lower (the first such
 /// particle on a tie, as a particle-by-particle search with `<` finds). Arrays by coordinate, n
@@ -186,7 +188,6 @@ Settled settleMoves(std::size_t n, std::size_t count, const double* __restrict a
   }
   return out;
 }
-static_assert(kSwarmLanes == 4, "settleMoves works on four particles at a time");
 
 /// Scratch for the policies' batch decisions (the swarm's size rarely exceeds a few dozen).
 struct Scratch {
@@ -268,7 +269,7 @@ ParticleSwarm::ParticleSwarm(const SwarmSettings& settings, std::shared_ptr<cons
   delta_.assign(padded_, 0.0);
   accepted_.assign(padded_, 0.0);
   improved_.assign(padded_, 0.0);
-  batch_points_.assign(n_, ParameterVector{});
+  batch_points_.assign(padded_, ParameterVector{});
   th_.resize(padded_);
   for (std::size_t i = 0; i < n_; ++i) {
     for (int d = 0; d < kParameterCount; ++d) {
@@ -293,8 +294,8 @@ void ParticleSwarm::proposeMoves(double inertia) {
   // data).
   rng_.fill(r_.data(), r_.size());
   const std::size_t entries = padded_ * kParameterCount;
-  moveAll(padded_, inertia, s_.c1, s_.c2, s_.v_max, gbest_.data(), x_.data(), v_.data(), pbest_.data(), r_.data(),
-          r_.data() + entries, move_x_.data(), move_v_.data());
+  moveAll(padded_, inertia, s_.c1, s_.c2, s_.v_max, gbest_.data(), lower_.data(), span_.data(), x_.data(), v_.data(),
+          pbest_.data(), r_.data(), r_.data() + entries, move_x_.data(), move_v_.data(), batch_points_.data());
 }
 
 void ParticleSwarm::acceptMoves() {
