@@ -342,8 +342,12 @@ inline void zeroFill(T& x) {
 // Upper triangle of S += alpha z z^T (small fixed sizes: plain loops beat the general routine).
 template <int N>
 inline void rankOneUpper(Eigen::Matrix<double, N, N>& S, const Eigen::Matrix<double, N, 1>& z, double alpha) {
+  // Unrolled whole (N is a small compile-time size): the triangle's loops of varying length otherwise
+  // compile to a vector loop with a scalar remainder per column.
+#pragma GCC unroll 16
   for (int j = 0; j < N; ++j) {
     const double azj = alpha * z(j);
+#pragma GCC unroll 16
     for (int i = 0; i <= j; ++i) S(i, j) += azj * z(i);
   }
 }

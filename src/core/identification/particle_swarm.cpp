@@ -39,18 +39,6 @@ static_assert(kSwarmLanes == 4, "the swarm's steps work on four particles at a t
 
 // ---- The loops (inlined into the cloned steps below) ----
 
-/// metropolisAccepts(x[i], r[i]) where candidate[i] is 1 (0 elsewhere): the bounds decide in the
-/// vector loop; the rare lanes between them (marked 0.5) go to exp() one by one.
-PMSM_INLINE_LOOP void metropolisDecisions(std::size_t n, const double* __restrict x, const double* __restrict r,
-                                          const double* __restrict candidate, double* __restrict decision) {
-  for (std::size_t i = 0; i < n; ++i) {
-    const double bounded = metropolisBoundsVerdict(x[i], r[i]);
-    decision[i] = candidate[i] > 0.5 ? bounded : 0.0;
-  }
-  for (std::size_t i = 0; i < n; ++i)
-    if (decision[i] == 0.5) decision[i] = std::exp(-x[i]) > r[i] ? 1.0 : 0.0;
-}
-
 // ---- One cloned function per step of an iteration ----
 
 /// Eq. (4) for every particle (arrays by coordinate, entry [d * n + i]; gbest by coordinate), with
@@ -91,43 +79,63 @@ void increaseAll(std::size_t n, const double* __restrict f_new, const double* __
   for (std::size_t i = 0; i < n; ++i) delta[i] = (f_new[i] - f_old[i]) / scale;
 }
 
-/// SAPSO (Eq. 16): better or equal always; worse by the Metropolis test at x = delta / T.
-PMSM_VECTOR_CLONES
-void metropolisAcceptAll(std::size_t n, const double* __restrict delta, const double* __restrict T,
-                         const double* __restrict r, double* __restrict x, double* __restrict worse,
-                         double* __restrict accepted) {
-  for (std::size_t i = 0; i < n; ++i) {
-    x[i] = delta[i] / T[i];
-    worse[i] = delta[i] > 0.0 ? 1.0 : 0.0;
+/// metropolisBoundsVerdict() for four lanes (the same operations in the same order).
+PMSM_INLINE_LOOP Lanes4 metropolisBoundsVerdict4(Lanes4 x, Lanes4 r) {
+  const Lanes4 x2 = x * x;
+  const Lanes4 x3 = x2 * x;
+  const Mask4 surely_accepted = r < 1.0 - x + 0.5 * x2 - x3 * (1.0 / 6.0) - 1e-12;
+  const Mask4 surely_rejected = r * (1.0 + x + 0.5 * x2 + x3 * (1.0 / 6.0) + x2 * x2 * (1.0 / 24.0)) > 1.0 + 1e-12;
+  const Lanes4 one = {1.0, 1.0, 1.0, 1.0}, zero = {}, between = {0.5, 0.5, 0.5, 0.5};
+  return select4(surely_accepted, one, select4(surely_rejected, zero, between));
+}
+/// The Metropolis decision where a lane's verdict is undecided (0.5): exp(-x) > r, as
+/// metropolisAccepts() decides (also x = NaN: rejected).
+PMSM_INLINE_LOOP Lanes4 resolveBetweenBounds(Lanes4 verdict, Lanes4 x, Lanes4 r) {
+  const Mask4 undecided = verdict == 0.5;
+  if (undecided[0] | undecided[1] | undecided[2] | undecided[3]) {
+    for (std::size_t l = 0; l < kSwarmLanes; ++l)
+      if (verdict[l] == 0.5) verdict[l] = std::exp(-x[l]) > r[l] ? 1.0 : 0.0;
   }
-  metropolisDecisions(n, x, r, worse, accepted);
-  for (std::size_t i = 0; i < n; ++i) accepted[i] = delta[i] <= 0.0 ? 1.0 : accepted[i];
+  return verdict;
 }
 
 /// FBDAPSO (Eq. 17, 7-8): better moves are taken and anneal; the others face the Metropolis test at
 /// x = delta / T (delta = 0 counts as zero_delta; NaN: not better, and rejected by the test), and
 /// accepted worse ones temper first (C2^d T2 with d counted on) and then anneal; rejected ones
-/// leave T as it is.
+/// leave T as it is. Four particles at a time, in registers; exp() only for the rare lanes between
+/// the Metropolis bounds.
 PMSM_VECTOR_CLONES
 void backfireAcceptAll(std::size_t n, const double* __restrict delta, const double* __restrict r, double zero_delta,
                        double C1, double C2, double T2, double* __restrict T, double* __restrict c2_power,
-                       double* __restrict accepted_worse, double* __restrict x, double* __restrict not_better,
-                       double* __restrict tempered, double* __restrict accepted) {
-  for (std::size_t i = 0; i < n; ++i) {
-    const double d = delta[i] == 0.0 ? zero_delta : delta[i];
-    x[i] = d / T[i];
-    not_better[i] = delta[i] < 0.0 ? 0.0 : 1.0;
+                       double* __restrict accepted_worse, double* __restrict accepted) {
+  const Lanes4 one = {1.0, 1.0, 1.0, 1.0}, zero = {}, half = {0.5, 0.5, 0.5, 0.5};
+  for (std::size_t i = 0; i < n; i += kSwarmLanes) {
+    const Lanes4 increase = load4(delta + i), temperature = load4(T + i), draw = load4(r + i);
+    const Mask4 better = increase < zero;
+    const Lanes4 x = select4(increase == zero, Lanes4{} + zero_delta, increase) / temperature;
+    const Lanes4 tempered = resolveBetweenBounds(select4(better, zero, metropolisBoundsVerdict4(x, draw)), x, draw);
+    const Mask4 worse_taken = tempered > half;
+    const Lanes4 power = load4(c2_power + i);
+    const Lanes4 c2 = select4(worse_taken, power * C2, power);
+    const Lanes4 annealed = C1 * temperature, tempered_T = C1 * (temperature + c2 * T2);
+    store4(T + i, select4(better, annealed, select4(worse_taken, tempered_T, temperature)));
+    store4(c2_power + i, c2);
+    store4(accepted_worse + i, load4(accepted_worse + i) + tempered);
+    store4(accepted + i, select4(better, one, tempered));
   }
-  metropolisDecisions(n, x, r, not_better, tempered);
-  for (std::size_t i = 0; i < n; ++i) {
-    const bool better = not_better[i] < 0.5, worse_taken = tempered[i] > 0.5;
-    const double c2_next = c2_power[i] * C2;
-    const double c2 = worse_taken ? c2_next : c2_power[i];
-    const double annealed = C1 * T[i], tempered_T = C1 * (T[i] + c2 * T2);
-    T[i] = better ? annealed : (worse_taken ? tempered_T : T[i]);
-    c2_power[i] = c2;
-    accepted_worse[i] += tempered[i];
-    accepted[i] = better ? 1.0 : tempered[i];
+}
+
+/// SAPSO (Eq. 16): better or equal always; worse by the Metropolis test at x = delta / T. Four
+/// particles at a time, in registers.
+PMSM_VECTOR_CLONES
+void metropolisAcceptAll(std::size_t n, const double* __restrict delta, const double* __restrict T,
+                         const double* __restrict r, double* __restrict accepted) {
+  const Lanes4 one = {1.0, 1.0, 1.0, 1.0}, zero = {};
+  for (std::size_t i = 0; i < n; i += kSwarmLanes) {
+    const Lanes4 increase = load4(delta + i), draw = load4(r + i);
+    const Lanes4 x = increase / load4(T + i);
+    const Lanes4 worse = resolveBetweenBounds(select4(increase > zero, metropolisBoundsVerdict4(x, draw), zero), x, draw);
+    store4(accepted + i, select4(increase <= zero, one, worse));
   }
 }
 
@@ -189,22 +197,6 @@ Settled settleMoves(std::size_t n, std::size_t count, const double* __restrict a
   return out;
 }
 
-/// Scratch for the policies' batch decisions (the swarm's size rarely exceeds a few dozen).
-struct Scratch {
-  std::vector<double> x, applies, decision;
-  void resize(std::size_t n) {
-    if (x.size() < n) {
-      x.resize(n);
-      applies.resize(n);
-      decision.resize(n);
-    }
-  }
-};
-Scratch& scratch(std::size_t n) {
-  thread_local Scratch s;
-  s.resize(n);
-  return s;
-}
 }  // namespace
 
 void AcceptancePolicy::acceptAll(std::size_t n, const double* delta, const double* r, SwarmTemperatures& th,
@@ -230,8 +222,7 @@ void AlwaysAccept::acceptAll(std::size_t n, const double*, const double*, SwarmT
 
 void MetropolisAcceptance::acceptAll(std::size_t n, const double* delta, const double* r, SwarmTemperatures& th,
                                      double* accepted) const {
-  Scratch& s = scratch(n);
-  metropolisAcceptAll(n, delta, th.T.data(), r, s.x.data(), s.applies.data(), accepted);
+  metropolisAcceptAll(n, delta, th.T.data(), r, accepted);
 }
 
 void MetropolisAcceptance::endIterationAll(std::size_t n, SwarmTemperatures& th) const {
@@ -240,9 +231,8 @@ void MetropolisAcceptance::endIterationAll(std::size_t n, SwarmTemperatures& th)
 
 void BackfireDoubleAnnealing::acceptAll(std::size_t n, const double* delta, const double* r, SwarmTemperatures& th,
                                         double* accepted) const {
-  Scratch& s = scratch(n);
-  backfireAcceptAll(n, delta, r, zero_delta_, C1_, C2_, T2_, th.T.data(), th.c2_power.data(),
-                    th.accepted_worse.data(), s.x.data(), s.applies.data(), s.decision.data(), accepted);
+  backfireAcceptAll(n, delta, r, zero_delta_, C1_, C2_, T2_, th.T.data(), th.c2_power.data(), th.accepted_worse.data(),
+                    accepted);
 }
 
 ParticleSwarm::ParticleSwarm(const SwarmSettings& settings, std::shared_ptr<const AcceptancePolicy> policy,
