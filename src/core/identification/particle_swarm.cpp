@@ -53,7 +53,9 @@ void moveAll(std::size_t n, double inertia, double c1, double c2, double v_max, 
              ParameterVector* __restrict points) {
   const Lanes4 zero = {}, one = {1.0, 1.0, 1.0, 1.0}, limit = Lanes4{} + v_max, w = Lanes4{} + inertia;
   const Lanes4 k1 = Lanes4{} + c1, k2 = Lanes4{} + c2;
+  static_assert(kParameterCount == kSwarmLanes, "the candidates' parameters are a 4 x 4 transpose per group");
   for (std::size_t i = 0; i < n; i += kSwarmLanes) {
+    Lanes4 values[kParameterCount];  // by coordinate: lane l is particle i + l
     for (int d = 0; d < kParameterCount; ++d) {
       const std::size_t o = static_cast<std::size_t>(d) * n + i;
       const Lanes4 xd = load4(x + o);
@@ -66,9 +68,17 @@ void moveAll(std::size_t n, double inertia, double c1, double c2, double v_max, 
       clamped = select4(one < clamped, one, clamped);
       store4(move_x + o, clamped);
       store4(move_v + o, select4(outside, zero, vd));
-      const Lanes4 value = lower[d] + clamped * span[d];
-      for (std::size_t l = 0; l < kSwarmLanes; ++l) points[i + l][d] = value[l];
+      values[d] = lower[d] + clamped * span[d];
     }
+    // Particle by particle (a transpose in registers: unpack pairs, then swap 128-bit halves).
+    const Lanes4 lo01 = __builtin_shuffle(values[0], values[1], Mask4{0, 4, 2, 6});
+    const Lanes4 hi01 = __builtin_shuffle(values[0], values[1], Mask4{1, 5, 3, 7});
+    const Lanes4 lo23 = __builtin_shuffle(values[2], values[3], Mask4{0, 4, 2, 6});
+    const Lanes4 hi23 = __builtin_shuffle(values[2], values[3], Mask4{1, 5, 3, 7});
+    store4(points[i].data(), __builtin_shuffle(lo01, lo23, Mask4{0, 1, 4, 5}));
+    store4(points[i + 1].data(), __builtin_shuffle(hi01, hi23, Mask4{0, 1, 4, 5}));
+    store4(points[i + 2].data(), __builtin_shuffle(lo01, lo23, Mask4{2, 3, 6, 7}));
+    store4(points[i + 3].data(), __builtin_shuffle(hi01, hi23, Mask4{2, 3, 6, 7}));
   }
 }
 
