@@ -200,6 +200,9 @@ class BlockStatistics {
                               : upperForm<5>(Sq, wq, upperForm<4>(Sd, wd, 0.0));
     return std::max(0.0, 2.0 * f / stored_weight_);
   }
+  /// fitness() at n points in one call (the swarm evaluates every particle's move at once): the same
+  /// values, each computed as fitness() computes it, without a call per point.
+  void fitness(const ParameterVector* p, std::size_t n, double* out) const;
   /// f + sum_i w_i (S_ii w_i / 2 + sum_{j > i} S_ij w_j) over the first N entries.
   template <int N, class Matrix>
   static double upperForm(const Matrix& S, const double* w, double f) {
@@ -214,6 +217,7 @@ class BlockStatistics {
   /// L_dq and the incremental L_qq known (profiled by the data's exact fit), p[kLq] the secant
   /// inductance (it enters through omega_e psi_q only), p[kPsiF] the flux psi_d(0, i_q).
   double fitnessWithCrossSaturation(const ParameterVector& p) const;
+  void fitnessWithCrossSaturation(const ParameterVector* p, std::size_t n, double* out) const;
 
   /// The inverter voltage the fitness subtracts (0: none) [V], the part of it that builds up over
   /// twice the zero-crossing current [V], and the part that scales with the logged bus voltage (the

@@ -258,7 +258,7 @@ void ParticleSwarm::iterate(const F& f) {
   //    synchronous (gbest changes at the end of the iteration), so the order does not matter, and
   //    20 independent evaluations back to back keep the CPU busy.
   proposeMoves(w);
-  if constexpr (HasBatch<F>::value) {  // all particles at once (the output-error fitness)
+  if constexpr (HasBatch<F>::value) {  // all particles in one call (the identifier's fitnesses)
     f.batch(batch_points_.data(), n, move_f_.data());
   } else {
     for (std::size_t i = 0; i < n; ++i) move_f_[i] = f(batch_points_[i]);

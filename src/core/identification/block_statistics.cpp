@@ -716,6 +716,16 @@ double BlockStatistics::crossLinearisationCurrent() const {
   return w > 0 ? S_d_(kIntegralOmegaIq, kIntegralOmegaInD) / w : 0.0;
 }
 
+// The point-by-point form inlined into the loop (flatten): one call for a whole swarm iteration.
+[[gnu::flatten]] void BlockStatistics::fitness(const ParameterVector* p, std::size_t n, double* out) const {
+  for (std::size_t i = 0; i < n; ++i) out[i] = fitness(p[i]);
+}
+
+[[gnu::flatten]] void BlockStatistics::fitnessWithCrossSaturation(const ParameterVector* p, std::size_t n,
+                                                                   double* out) const {
+  for (std::size_t i = 0; i < n; ++i) out[i] = fitnessWithCrossSaturation(p[i]);
+}
+
 double BlockStatistics::fitnessWithCrossSaturation(const ParameterVector& p) const {
   if (weight_ <= 0) return std::numeric_limits<double>::infinity();
   // psi_q(0, i_q) and psi_d(0, i_q) linear in i_q about i_bar, where L_q and psi_f are the secant and

@@ -33,6 +33,19 @@ struct OutputErrorFitness {
   double operator()(const ParameterVector& p) const { return (*window)(p); }
   void batch(const ParameterVector* p, std::size_t n, double* out) const { window->batch(p, n, out); }
 };
+/// The block fitness (or its cross-saturation form) as the swarm sees it: a whole iteration's moves
+/// in one call into the statistics, where the point-by-point form is inlined.
+template <bool kCrossSaturation>
+struct BlockFitness {
+  const BlockStatistics* stats;
+  double operator()(const ParameterVector& p) const {
+    return kCrossSaturation ? stats->fitnessWithCrossSaturation(p) : stats->fitness(p);
+  }
+  void batch(const ParameterVector* p, std::size_t n, double* out) const {
+    if constexpr (kCrossSaturation) stats->fitnessWithCrossSaturation(p, n, out);
+    else stats->fitness(p, n, out);
+  }
+};
 }  // namespace
 
 void SwarmIdentifier::restart() {
@@ -63,9 +76,8 @@ void SwarmIdentifier::update(const Sample& s, bool, bool continuity_broken) {
     return;
   }
   if (!stats_.hasBlocks() || !swarm_) return;
-  const BlockStatistics& stats = stats_;
-  if (stats.crossSaturationSet()) iterate([&stats](const ParameterVector& p) { return stats.fitnessWithCrossSaturation(p); });
-  else iterate([&stats](const ParameterVector& p) { return stats.fitness(p); });
+  if (stats_.crossSaturationSet()) iterate(BlockFitness<true>{&stats_});
+  else iterate(BlockFitness<false>{&stats_});
 }
 
 template <class F>
