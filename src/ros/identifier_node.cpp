@@ -91,6 +91,14 @@ void IdentifierNode::consume(const Sample& s) {
       return;
     case SampleStatus::SkippedDuplicate:
       return;
+    case SampleStatus::SkippedTooClose:  // not used: the stream's time stays at the last used sample
+      ROS_WARN_THROTTLE(1.0, "skipping a sample stamped less than a quarter period after the previous one (%llu so far)",
+                        static_cast<unsigned long long>(identifier_->counters().skipped_too_close));
+      return;
+    case SampleStatus::PeriodChanged:
+      ROS_WARN("the sampling period changed at t = %.6f s (now %.4g s): statistics restarted at the new rate", s.t,
+               identifier_->samplePeriod());
+      break;
     case SampleStatus::Used:
       break;
   }

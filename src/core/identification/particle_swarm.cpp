@@ -11,12 +11,15 @@
 
 namespace pmsm_param_id {
 
-// The per-iteration work is a handful of loops over all particles (or all their coordinates) that
-// the compiler turns into vector instructions: no branches, flags as doubles 1 or 0 and selected
-// with `flag > 0.5 ? a : b` (both sides computed first). This file is compiled with
-// -fno-trapping-math (CMakeLists.txt): without it GCC may not compute both sides of a select,
-// because one of them could raise a floating-point exception the program never asked to see; the
-// numbers are the same either way.
+// The per-iteration work is four steps (the moves, the fitness increases, the policy's decisions,
+// the settling of moves and bests), each one cloned function (vector_clones.hpp) that takes four
+// particles at a time with all their coordinates in vector registers (Lanes4): no branches, a
+// comparison gives a lane mask and select4 picks bitwise (both sides computed first). Flags kept
+// between steps are doubles 1 or 0. Every step repeats the scalar definition's operations in the
+// same order (accept(), metropolisBoundsVerdict(), Eq. 4), so results do not depend on the
+// instruction set. This file is compiled with -fno-trapping-math (CMakeLists.txt): without it GCC
+// may not compute both sides of a select, because one of them could raise a floating-point
+// exception the program never asked to see; the numbers are the same either way.
 namespace {
 std::size_t roundUp(std::size_t n) { return (n + kSwarmLanes - 1) / kSwarmLanes * kSwarmLanes; }
 
