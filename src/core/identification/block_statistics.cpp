@@ -326,7 +326,7 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
 
 namespace {
 /// Zeroes a trivially copyable object with straight-line 16-byte stores. (`x = T{}` became `rep
-/// stos` here, whose start-up cost was a tenth of a statistics update for a 336-byte ring entry.)
+/// stos` here; for a 336-byte ring entry its start-up cost showed as ~7 % of a statistics update.)
 template <class T, std::size_t... K>
 inline void zeroStores(T& x, std::index_sequence<K...>) {
   typedef double Pair __attribute__((vector_size(16)));
@@ -357,7 +357,7 @@ bool BlockStatistics::add(const Sample& s) {
   if (block_samples_ == 0) throw std::logic_error("BlockStatistics::add before configure()");
   // The new entry is written in place: into the free slot, or over the oldest entry once the ring
   // is full (nothing below reads the oldest before it is dropped).
-  // (Ring positions wrap by a comparison: a division per position was a tenth of this update.)
+  // (Ring positions wrap by a comparison: five integer divisions per sample were ~4 % of this update.)
   const std::size_t cap = ring_.size();
   const auto wrap = [cap](std::size_t k) { return k < cap ? k : k - cap; };  // k < 2 cap
   Cumulative& c = ring_[wrap(head_ + count_)];

@@ -159,7 +159,7 @@ void scaleAll(std::size_t n, double factor, double* __restrict a) {
 
 /// What an iteration's decisions leave to tell (ParticleSwarm::settleMoves).
 struct Settled {
-  std::size_t best;        ///< the particle whose move is the new global best (n: none)
+  std::size_t best;        ///< the particle whose move is the new global best (count: none)
   std::uint64_t worse_proposed, worse_accepted;
 };
 
