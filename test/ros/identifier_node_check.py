@@ -7,6 +7,7 @@ import unittest
 import rospy
 import rostest
 from diagnostic_msgs.msg import DiagnosticArray
+from rosgraph_msgs.msg import Log
 
 from pmsm_param_id.msg import DriveSampleBatch, ElectricalParameters, ParameterEstimate
 
@@ -15,12 +16,13 @@ class IdentifierNode(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         rospy.init_node("identifier_node_check")
-        cls.estimates, cls.probe, cls.diag = [], [], {}
+        cls.estimates, cls.probe, cls.diag, cls.log = [], [], {}, []
         cls.truth = None
         rospy.Subscriber("/identifiers/fbdapso/estimate", ParameterEstimate, cls.estimates.append)
         rospy.Subscriber("/probe/estimate", ParameterEstimate, cls.probe.append)
         rospy.Subscriber("/drive/true_parameters", ElectricalParameters, lambda m: setattr(cls, "truth", m))
         rospy.Subscriber("/diagnostics", DiagnosticArray, cls.on_diag)
+        rospy.Subscriber("/rosout", Log, cls.log.append)
 
     @classmethod
     def on_diag(cls, msg):
@@ -77,6 +79,9 @@ class IdentifierNode(unittest.TestCase):
         bad.i_d.pop()                                            # malformed: arrays of different lengths
         pub.publish(bad)
         pub.publish(self.batch(t0 + dt * 4, 200))
+        # Its first sample a tenth of a period after the previous one: skipped as too close, the rest
+        # of the batch kept (the node's time stays at the last used sample).
+        pub.publish(self.batch(t0 + dt * 5 - rospy.Duration(0.9e-4), 250))
         pub.publish(self.batch(t0, 0))                           # stamps go backwards: the bag looped
         name = "probe: identifier"
         self.assertTrue(self.wait_for(lambda: self.counters(name).get("time resets (stamps went backwards)") == "1", 30),
@@ -86,12 +91,15 @@ class IdentifierNode(unittest.TestCase):
         self.assertEqual(c["samples dropped (index gaps)"], "50")
         self.assertEqual(c["malformed messages"], "1")
         self.assertEqual(c["time gaps"], "1")
-        self.assertEqual(c["samples received"], "250")
+        self.assertEqual(c["samples skipped (stamp too close)"], "1")
+        self.assertEqual(c["samples received"], "300")
         self.assertEqual(self.diag[name].level, 1)  # WARN
         # Every good sample was used. This synthetic signal is no motor (no consistent inductance), so
         # no estimate is published at all rather than a made-up one; the diagnostics say so.
-        self.assertTrue(self.wait_for(lambda: self.counters(name).get("samples used") == "249", 10),
+        self.assertTrue(self.wait_for(lambda: self.counters(name).get("samples used") == "298", 10),
                         str(self.counters(name)))
+        self.assertTrue(self.wait_for(lambda: any(m.name == "/probe" and "less than a quarter period" in m.msg
+                                                  for m in self.log), 10), "no warning for the too-close sample")
         self.assertTrue(all(math.isfinite(v) for p in self.probe for v in (p.R_s, p.L_d, p.L_q, p.psi_f)))
 
     def test_no_samples_gives_a_warning(self):
