@@ -30,13 +30,24 @@ struct ParticleTemperature {
 /// The margins (1e-12) exceed the rounding of the bounds, so every decision is the one exp() gives;
 /// exp() is left for r inside the band between the bounds: 0.3 % of the draws at x = 0.5, 4 % at
 /// x = 1, 14 % at x = 2, under 3 % beyond x = 5.
+/// The two bounds, for a double or for a vector of doubles (the swarm's four-lane steps use them
+/// too): r below the first is surely accepted; r times the second above 1 + 1e-12 surely rejected.
+template <class T>
+inline T metropolisAcceptBound(T x) {
+  const T x2 = x * x;
+  const T x3 = x2 * x;
+  return 1.0 - x + 0.5 * x2 - x3 * (1.0 / 6.0) - 1e-12;
+}
+template <class T>
+inline T metropolisRejectFactor(T x) {
+  const T x2 = x * x;
+  const T x3 = x2 * x;
+  return 1.0 + x + 0.5 * x2 + x3 * (1.0 / 6.0) + x2 * x2 * (1.0 / 24.0);
+}
 /// The bounds' verdict: 1 surely accepted, 0 surely rejected, 0.5 between them (exp() decides).
-/// Branch-free, so that the swarm's vector loop can use it for all particles at once.
 inline double metropolisBoundsVerdict(double x, double r) {
-  const double x2 = x * x;
-  const double x3 = x2 * x;
-  const bool surely_accepted = r < 1.0 - x + 0.5 * x2 - x3 * (1.0 / 6.0) - 1e-12;
-  const bool surely_rejected = r * (1.0 + x + 0.5 * x2 + x3 * (1.0 / 6.0) + x2 * x2 * (1.0 / 24.0)) > 1.0 + 1e-12;
+  const bool surely_accepted = r < metropolisAcceptBound(x);
+  const bool surely_rejected = r * metropolisRejectFactor(x) > 1.0 + 1e-12;
   return surely_accepted ? 1.0 : (surely_rejected ? 0.0 : 0.5);
 }
 inline bool metropolisAccepts(double x, double r) {

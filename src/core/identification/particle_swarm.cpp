@@ -28,19 +28,17 @@ std::size_t roundUp(std::size_t n) { return (n + kSwarmLanes - 1) / kSwarmLanes 
 // no 64-bit integer compare) needs no branch either.
 typedef double Lanes4 __attribute__((vector_size(8 * kSwarmLanes)));
 typedef std::int64_t Mask4 __attribute__((vector_size(8 * kSwarmLanes)));
-PMSM_INLINE_LOOP Lanes4 load4(const double* p) {
+PMSM_ALWAYS_INLINE Lanes4 load4(const double* p) {
   Lanes4 v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
-PMSM_INLINE_LOOP void store4(double* p, Lanes4 v) { std::memcpy(p, &v, sizeof v); }
+PMSM_ALWAYS_INLINE void store4(double* p, Lanes4 v) { std::memcpy(p, &v, sizeof v); }
 /// mask ? a : b, lane by lane.
-PMSM_INLINE_LOOP Lanes4 select4(Mask4 mask, Lanes4 a, Lanes4 b) {
+PMSM_ALWAYS_INLINE Lanes4 select4(Mask4 mask, Lanes4 a, Lanes4 b) {
   return reinterpret_cast<Lanes4>((reinterpret_cast<Mask4>(a) & mask) | (reinterpret_cast<Mask4>(b) & ~mask));
 }
 static_assert(kSwarmLanes == 4, "the swarm's steps work on four particles at a time");
-
-// ---- The loops (inlined into the cloned steps below) ----
 
 // ---- One cloned function per step of an iteration ----
 
@@ -92,18 +90,16 @@ void increaseAll(std::size_t n, const double* __restrict f_new, const double* __
   for (std::size_t i = 0; i < n; ++i) delta[i] = (f_new[i] - f_old[i]) / scale;
 }
 
-/// metropolisBoundsVerdict() for four lanes (the same operations in the same order).
-PMSM_INLINE_LOOP Lanes4 metropolisBoundsVerdict4(Lanes4 x, Lanes4 r) {
-  const Lanes4 x2 = x * x;
-  const Lanes4 x3 = x2 * x;
-  const Mask4 surely_accepted = r < 1.0 - x + 0.5 * x2 - x3 * (1.0 / 6.0) - 1e-12;
-  const Mask4 surely_rejected = r * (1.0 + x + 0.5 * x2 + x3 * (1.0 / 6.0) + x2 * x2 * (1.0 / 24.0)) > 1.0 + 1e-12;
+/// metropolisBoundsVerdict() for four lanes (the same bounds).
+PMSM_ALWAYS_INLINE Lanes4 metropolisBoundsVerdict4(Lanes4 x, Lanes4 r) {
+  const Mask4 surely_accepted = r < metropolisAcceptBound(x);
+  const Mask4 surely_rejected = r * metropolisRejectFactor(x) > 1.0 + 1e-12;
   const Lanes4 one = {1.0, 1.0, 1.0, 1.0}, zero = {}, between = {0.5, 0.5, 0.5, 0.5};
   return select4(surely_accepted, one, select4(surely_rejected, zero, between));
 }
 /// The Metropolis decision where a lane's verdict is undecided (0.5): exp(-x) > r, as
 /// metropolisAccepts() decides (also x = NaN: rejected).
-PMSM_INLINE_LOOP Lanes4 resolveBetweenBounds(Lanes4 verdict, Lanes4 x, Lanes4 r) {
+PMSM_ALWAYS_INLINE Lanes4 resolveBetweenBounds(Lanes4 verdict, Lanes4 x, Lanes4 r) {
   const Mask4 undecided = verdict == 0.5;
   if (undecided[0] | undecided[1] | undecided[2] | undecided[3]) {
     for (std::size_t l = 0; l < kSwarmLanes; ++l)

@@ -4,7 +4,7 @@
 // Elsewhere (Clang, ARM) the baseline alone.
 //
 // A cloned function is called through the loader's choice (an indirect call) and sets up each loop
-// anew, so one step of the swarm is one cloned function whose loops are PMSM_INLINE_LOOP helpers
+// anew, so one step of the swarm is one cloned function; its helpers are PMSM_ALWAYS_INLINE
 // (inlined into each clone, and compiled there for its instruction set).
 #pragma once
 
@@ -15,7 +15,7 @@
 #endif
 
 #if defined(__GNUC__)
-#define PMSM_INLINE_LOOP inline __attribute__((always_inline))
+#define PMSM_ALWAYS_INLINE inline __attribute__((always_inline))
 #else
-#define PMSM_INLINE_LOOP inline
+#define PMSM_ALWAYS_INLINE inline
 #endif
