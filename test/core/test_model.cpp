@@ -1,8 +1,10 @@
 // The IPMSM model: steady state, power balance, RK4 convergence order.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
+#include "pmsm_param_id/model/frames.hpp"
 #include "pmsm_param_id/model/motor_model.hpp"
 
 using namespace pmsm_param_id;
@@ -56,4 +58,26 @@ TEST(MotorModel, Rk4IsFourthOrder) {
   const double ratio = e1 / e2;
   EXPECT_GT(ratio, 12.0);  // 2^4 = 16 for a fourth-order method
   EXPECT_LT(ratio, 20.0);
+}
+
+// The mid-period phasor from the sample's (frames.hpp advance()): within a few ulps of cos and sin
+// of the summed angle, on both sides of the series' range and for large (unwrapped) angles, where
+// the summed angle's own rounding is the larger error.
+TEST(Frames, AdvancedPhasorMatchesCosAndSinOfTheSummedAngle) {
+  double worst_ulps = 0.0;
+  for (const double angle : {0.0, 0.3, -1.2, 2.9, -3.1, 40.0, -250.7}) {
+    for (const double delta : {0.0, 1e-9, -3e-4, 0.01, -0.07, 0.16, 0.2499, -0.25}) {
+      const Phasor e = advance(phasorOf(angle), angle, delta);
+      const long double exact = static_cast<long double>(angle) + static_cast<long double>(delta);
+      const double c = static_cast<double>(std::cos(exact)), s = static_cast<double>(std::sin(exact));
+      // In ulps of 1 (the phasor's scale): cos and sin of a sum near a zero of either are small.
+      worst_ulps = std::max({worst_ulps, std::abs(e.c - c) / 2.2e-16, std::abs(e.s - s) / 2.2e-16});
+    }
+  }
+  EXPECT_LT(worst_ulps, 4.0);
+  // Beyond the series' range (and for NaN) it takes cos and sin of the sum itself.
+  const Phasor far = advance(phasorOf(1.0), 1.0, 0.6);
+  EXPECT_DOUBLE_EQ(far.c, std::cos(1.6));
+  EXPECT_DOUBLE_EQ(far.s, std::sin(1.6));
+  EXPECT_TRUE(std::isnan(advance(phasorOf(1.0), 1.0, std::nan("")).c));
 }

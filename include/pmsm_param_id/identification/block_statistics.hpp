@@ -31,6 +31,7 @@
 #include <utility>
 #include <vector>
 
+#include "pmsm_param_id/model/frames.hpp"
 #include "pmsm_param_id/model/motor_model.hpp"
 #include "pmsm_param_id/model/sample.hpp"
 
@@ -294,14 +295,15 @@ class BlockStatistics {
     double u_d, u_q;                        // the sample's own (commanded) voltage
     double I_d, I_q, OmIq, OmId, U_d, U_q, Om, Ustep_d, Ustep_q, Inv_d, Inv_q, Wide_d, Wide_q, Bus_d, Bus_q;
     double bus_ratio;                       // v_dc / bus_reference_ - 1 at the sample (0: not logged)
-    double cos_theta, sin_theta, I_cos, I_sin;  // sensor offsets: cos, sin of the angle and their integrals
+    double cos_theta, sin_theta, I_cos, I_sin;  // cos, sin of the logged angle (0 without it); their integrals (sensor offsets)
     double P, Q, I_P, I_Q, W_P, W_Q;            // sensor gains: P, Q of the sample and their integrals
     double shape_d, shape_q;                // inverter error shape s at the sample
     double theta_e;                         // electrical angle (NaN when not logged)
     std::array<double, 3> phase;            // phase currents a, b, c (when theta_e is known)
   };
+  /// `mid`: the phasor of the rotor angle at mid-period.
   void inverterShapeIntegral(const Cumulative& previous, const Cumulative& current, const Sample& s, double dt,
-                             double width, const std::array<double, 3>& mid_bend, double& int_d,
+                             double width, const std::array<double, 3>& mid_bend, Phasor mid, double& int_d,
                              double& int_q) const;
   /// One period of the inverter shape's current observer (advances its state): its phase currents
   /// at the sample, the period's integrals of the narrow and wide shapes along its path, and its

@@ -116,16 +116,22 @@ HoldBend holdBend(double h, double w, double u_d, double u_q, double L_d, double
 }
 }  // namespace
 
+namespace {
+/// inverterShape() with the logged angle, given as its phasor: the phase currents from the measured
+/// d-q currents, then the d-q image of their signs.
+void inverterShapeAt(const Sample& s, Phasor angle, double& shape_d, double& shape_q, std::array<double, 3>* phase) {
+  const double cs = angle.c, sn = angle.s;
+  const std::array<double, 3> i = inverseClarke({cs * s.i_d - sn * s.i_q, sn * s.i_d + cs * s.i_q});
+  const Vec2 v = clarke(sign(i[0]), sign(i[1]), sign(i[2]));
+  shape_d = cs * v.x + sn * v.y;
+  shape_q = -sn * v.x + cs * v.y;
+  if (phase) *phase = i;
+}
+}  // namespace
+
 void inverterShape(const Sample& s, double& shape_d, double& shape_q, std::array<double, 3>* phase) {
   if (std::isfinite(s.theta_e)) {
-    // Phase currents from the measured d-q currents and the angle, then the d-q image of their
-    // signs: one cos/sin for both.
-    const double cs = std::cos(s.theta_e), sn = std::sin(s.theta_e);
-    const std::array<double, 3> i = inverseClarke({cs * s.i_d - sn * s.i_q, sn * s.i_d + cs * s.i_q});
-    const Vec2 v = clarke(sign(i[0]), sign(i[1]), sign(i[2]));
-    shape_d = cs * v.x + sn * v.y;
-    shape_q = -sn * v.x + cs * v.y;
-    if (phase) *phase = i;
+    inverterShapeAt(s, phasorOf(s.theta_e), shape_d, shape_q, phase);
     return;
   }
   const double magnitude2 = s.i_d * s.i_d + s.i_q * s.i_q;
@@ -135,8 +141,8 @@ void inverterShape(const Sample& s, double& shape_d, double& shape_q, std::array
 }
 
 void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulative& c, const Sample& s, double dt,
-                                            double width, const std::array<double, 3>& mid_bend, double& int_d,
-                                            double& int_q) const {
+                                            double width, const std::array<double, 3>& mid_bend, Phasor mid,
+                                            double& int_d, double& int_q) const {
   if (!(std::isfinite(p.theta_e) && std::isfinite(s.theta_e))) {  // no angle: trapezoid of (4/pi) i/|i|
     int_d = 0.5 * dt * (p.shape_d + c.shape_d);
     int_q = 0.5 * dt * (p.shape_q + c.shape_q);
@@ -164,13 +170,10 @@ void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulativ
       mean[static_cast<std::size_t>(k)] = f * sa + (1.0 - f) * sb;
     }
   }
-  // Into the rotor frame at mid-period: rotate(v, -mid), with cos and sin of one angle (one sincos
-  // call; GCC merges them only when both take the same argument).
-  const double mid = p.theta_e + 0.5 * dt * p.omega_e;  // rotor angle at mid-period
+  // Into the rotor frame at mid-period (`mid`: the phasor of the rotor angle there): rotate(v, -mid).
   const Vec2 v = clarke(mean[0], mean[1], mean[2]);
-  const double cm = std::cos(mid), sm = std::sin(mid);
-  int_d = dt * (cm * v.x + sm * v.y);
-  int_q = dt * (cm * v.y - sm * v.x);
+  int_d = dt * (mid.c * v.x + mid.s * v.y);
+  int_q = dt * (mid.c * v.y - mid.s * v.x);
 }
 
 BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative& p, const Sample& s, double dt,
@@ -369,16 +372,22 @@ bool BlockStatistics::add(const Sample& s) {
   c.u_d = s.u_d;
   c.u_q = s.u_q;
   c.theta_e = s.theta_e;
-  if (settings_.sensor_offsets && std::isfinite(s.theta_e)) {
-    c.cos_theta = std::cos(s.theta_e);
-    c.sin_theta = std::sin(s.theta_e);
+  // With the logged angle: its cos and sin (the one cos/sin call of a sample: the inverter shape,
+  // the sensor terms and the next sample's mid-period angle take them from here), and the phase
+  // currents.
+  if (std::isfinite(s.theta_e)) {
+    const Phasor angle = phasorOf(s.theta_e);
+    c.cos_theta = angle.c;
+    c.sin_theta = angle.s;
     if (settings_.sensor_gains) {
       const double c2 = c.cos_theta * c.cos_theta - c.sin_theta * c.sin_theta, s2 = 2.0 * c.sin_theta * c.cos_theta;
       c.P = c2 * s.i_d - s2 * s.i_q;
       c.Q = s2 * s.i_d + c2 * s.i_q;
     }
+    inverterShapeAt(s, angle, c.shape_d, c.shape_q, &c.phase);
+  } else {
+    inverterShape(s, c.shape_d, c.shape_q, &c.phase);
   }
-  inverterShape(s, c.shape_d, c.shape_q, &c.phase);  // the phase currents too, when the angle is known
   // The bus voltage relative to the first one logged (a fixed reference, so that every block's
   // entry means the same); a sample without it counts as the reference.
   if (std::isfinite(s.v_dc) && s.v_dc > 0 && !std::isfinite(bus_reference_)) bus_reference_ = s.v_dc;
@@ -436,6 +445,9 @@ bool BlockStatistics::add(const Sample& s) {
       observer_i_d_ = s.i_d;
       observer_i_q_ = s.i_q;
     }
+    // The rotor angle at mid-period, as a phasor advanced from the previous sample's.
+    const Phasor mid = std::isfinite(p.theta_e) ? advance({p.cos_theta, p.sin_theta}, p.theta_e, 0.5 * dt * p.omega_e)
+                                                : Phasor{};
     std::array<double, 3> mid_bend{};  // the phase currents' departure from the chord at mid-period
     if (observed.valid) {
       const double omega = (c.Om - p.Om) / dt;
@@ -455,7 +467,7 @@ bool BlockStatistics::add(const Sample& s) {
       c.OmIq += p.omega_e * bend.missed_q;
       // Where a phase current crosses zero, the inverter error's shape follows the bent current (on
       // the robot joint a 10 mA bend across a +-0.5 A crossing was the largest misfit left).
-      if (std::isfinite(p.theta_e)) mid_bend = phaseFromDq(bend.mid_d, bend.mid_q, p.theta_e + 0.5 * dt * p.omega_e);
+      if (std::isfinite(p.theta_e)) mid_bend = phaseFromDq(bend.mid_d, bend.mid_q, mid);
     }
     c.I_cos = p.I_cos + h * (p.cos_theta + c.cos_theta);
     c.I_sin = p.I_sin + h * (p.sin_theta + c.sin_theta);
@@ -474,7 +486,7 @@ bool BlockStatistics::add(const Sample& s) {
       inv_d = observed.narrow_d;
       inv_q = observed.narrow_q;
     } else {
-      inverterShapeIntegral(p, c, s, dt, width, mid_bend, inv_d, inv_q);
+      inverterShapeIntegral(p, c, s, dt, width, mid_bend, mid, inv_d, inv_q);
     }
     c.Inv_d = p.Inv_d + inv_d;
     c.Inv_q = p.Inv_q + inv_q;
@@ -490,7 +502,7 @@ bool BlockStatistics::add(const Sample& s) {
         inv_d = observed.wide_d;
         inv_q = observed.wide_q;
       } else {
-        inverterShapeIntegral(p, c, s, dt, wide, mid_bend, inv_d, inv_q);
+        inverterShapeIntegral(p, c, s, dt, wide, mid_bend, mid, inv_d, inv_q);
       }
       c.Wide_d = p.Wide_d + inv_d;
       c.Wide_q = p.Wide_q + inv_q;
