@@ -3,6 +3,8 @@
 #include <Eigen/Eigenvalues>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
+#include <string>
 
 namespace pmsm_param_id {
 
@@ -10,8 +12,7 @@ namespace {
 // At most 7 parameters: fixed-capacity matrices keep the solver off the heap.
 using MatN = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 7, 7>;
 using VecN = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 7, 1>;
-template <int N>
-using JacobianN = Eigen::Matrix<double, N, Eigen::Dynamic, 0, N, 7>;
+constexpr int kMaxParameters = 7;
 
 LinearBlockModel base(int extra) {
   LinearBlockModel m;
@@ -40,17 +41,48 @@ int addParameter(LinearBlockModel& m, const std::string& name) {
   return j;
 }
 
-// Residual weight vectors v = (G beta - e_U) / L per axis (r = v . z) and their Jacobians.
-template <int N>
-void weights(const Eigen::MatrixXd& G, int voltage_row, const VecN& beta, int inductance,
-             Eigen::Matrix<double, N, 1>& v, JacobianN<N>& J) {
-  const double L = beta(inductance);
-  Eigen::Matrix<double, N, 1> e = G * beta;
+// Residual weight vectors v = (G beta - e_U) / L per axis (r = v . z); R block entries, N
+// parameters, both known at compile time (the fit is instantiated per model size). Products with
+// 1 / L: a division per entry made this a quarter of a fit.
+template <int R, int N>
+void weights(const Eigen::Matrix<double, R, N>& G, int voltage_row, const Eigen::Matrix<double, N, 1>& beta,
+             int inductance, Eigen::Matrix<double, R, 1>& v) {
+  Eigen::Matrix<double, R, 1> e = G.lazyProduct(beta);
   e(voltage_row) -= 1.0;
-  v = e / L;
-  J = G / L;
-  J.col(inductance) -= e / (L * L);
+  v = e * (1.0 / beta(inductance));
 }
+// The same and their Jacobian dv/dbeta = (G - v e_L^T) / L.
+template <int R, int N>
+void weights(const Eigen::Matrix<double, R, N>& G, int voltage_row, const Eigen::Matrix<double, N, 1>& beta,
+             int inductance, Eigen::Matrix<double, R, 1>& v, Eigen::Matrix<double, R, N>& J) {
+  weights<R, N>(G, voltage_row, beta, inductance, v);
+  const double inverse_L = 1.0 / beta(inductance);
+  J = G * inverse_L;
+  J.col(inductance) -= v * inverse_L;
+}
+
+// a^T S b for the block sums S (symmetric, R x R) without a general matrix product: S b first.
+template <int R, int N>
+Eigen::Matrix<double, N, N> normalMatrix(const Eigen::Matrix<double, R, N>& J, const Eigen::Matrix<double, R, R>& S) {
+  const Eigen::Matrix<double, R, N> SJ = S.lazyProduct(J);
+  return J.transpose().lazyProduct(SJ);
+}
+template <int R, int N>
+Eigen::Matrix<double, N, 1> gradient(const Eigen::Matrix<double, R, N>& J, const Eigen::Matrix<double, R, R>& S,
+                                     const Eigen::Matrix<double, R, 1>& v) {
+  const Eigen::Matrix<double, R, 1> Sv = S.lazyProduct(v);
+  return J.transpose().lazyProduct(Sv);
+}
+template <int R>
+double quadraticForm(const Eigen::Matrix<double, R, 1>& v, const Eigen::Matrix<double, R, R>& S) {
+  const Eigen::Matrix<double, R, 1> Sv = S.lazyProduct(v);
+  return v.dot(Sv);
+}
+
+/// The exact fit of a model with N parameters (BlockLeastSquares::fit).
+template <int N>
+BlockFit fitModel(const WindowSums& stats, const LinearBlockModel& model, const Eigen::VectorXd& start,
+                  const std::vector<bool>& fixed_in, double variance_inflation);
 }  // namespace
 
 const LinearBlockModel& LinearBlockModel::paper() {
@@ -174,26 +206,59 @@ const LinearBlockModel& LinearBlockModel::inverterWithShapeAndBus() {
   return model;
 }
 
+namespace {
+template <int N>
+void residualsOf(const WindowSums& stats, const LinearBlockModel& model, const Eigen::VectorXd& beta, double& ms_d,
+                 double& ms_q, double& diff_ms_d, double& diff_ms_q) {
+  Eigen::Matrix<double, kBlockSizeD, 1> vd;
+  Eigen::Matrix<double, kBlockSizeQ, 1> vq;
+  Eigen::Matrix<double, kBlockSizeD, N> Jd;
+  Eigen::Matrix<double, kBlockSizeQ, N> Jq;
+  const Eigen::Matrix<double, N, 1> b = beta;
+  weights<kBlockSizeD, N>(model.G_d, kIntegralUd, b, model.d_inductance, vd, Jd);
+  weights<kBlockSizeQ, N>(model.G_q, kIntegralUq, b, model.q_inductance, vq, Jq);
+  ms_d = std::max(0.0, quadraticForm(vd, stats.mean_d));
+  ms_q = std::max(0.0, quadraticForm(vq, stats.mean_q));
+  diff_ms_d = std::max(0.0, quadraticForm(vd, stats.mean_difference_d));
+  diff_ms_q = std::max(0.0, quadraticForm(vq, stats.mean_difference_q));
+}
+}  // namespace
+
 void BlockLeastSquares::residuals(const WindowSums& stats, const LinearBlockModel& model,
                                   const Eigen::VectorXd& beta, double& ms_d, double& ms_q, double& diff_ms_d,
                                   double& diff_ms_q) {
-  Eigen::Matrix<double, kBlockSizeD, 1> vd;
-  Eigen::Matrix<double, kBlockSizeQ, 1> vq;
-  JacobianN<kBlockSizeD> Jd;
-  JacobianN<kBlockSizeQ> Jq;
-  const VecN b = beta;
-  weights<kBlockSizeD>(model.G_d, kIntegralUd, b, model.d_inductance, vd, Jd);
-  weights<kBlockSizeQ>(model.G_q, kIntegralUq, b, model.q_inductance, vq, Jq);
-  ms_d = std::max(0.0, vd.dot(stats.mean_d * vd));
-  ms_q = std::max(0.0, vq.dot(stats.mean_q * vq));
-  diff_ms_d = std::max(0.0, vd.dot(stats.mean_difference_d * vd));
-  diff_ms_q = std::max(0.0, vq.dot(stats.mean_difference_q * vq));
+  switch (model.size()) {
+    case 4: return residualsOf<4>(stats, model, beta, ms_d, ms_q, diff_ms_d, diff_ms_q);
+    case 5: return residualsOf<5>(stats, model, beta, ms_d, ms_q, diff_ms_d, diff_ms_q);
+    case 6: return residualsOf<6>(stats, model, beta, ms_d, ms_q, diff_ms_d, diff_ms_q);
+    case 7: return residualsOf<7>(stats, model, beta, ms_d, ms_q, diff_ms_d, diff_ms_q);
+  }
+  throw std::invalid_argument("a block model has 4 to 7 parameters, not " + std::to_string(model.size()));
 }
 
 BlockFit BlockLeastSquares::fit(const WindowSums& stats, const LinearBlockModel& model,
                                 const Eigen::VectorXd& start, const std::vector<bool>& fixed_in,
                                 double variance_inflation) {
-  const int n = model.size();
+  // One instance per model size: every matrix of the iteration has its size at compile time, so
+  // that the small products are unrolled loops instead of general matrix products with packing
+  // (the fit ran every 500 samples and was ~8 % of a swarm's per-sample time).
+  switch (model.size()) {
+    case 4: return fitModel<4>(stats, model, start, fixed_in, variance_inflation);
+    case 5: return fitModel<5>(stats, model, start, fixed_in, variance_inflation);
+    case 6: return fitModel<6>(stats, model, start, fixed_in, variance_inflation);
+    case 7: return fitModel<7>(stats, model, start, fixed_in, variance_inflation);
+  }
+  throw std::invalid_argument("a block model has 4 to 7 parameters, not " + std::to_string(model.size()));
+}
+
+namespace {
+template <int N>
+BlockFit fitModel(const WindowSums& stats, const LinearBlockModel& model, const Eigen::VectorXd& start,
+                  const std::vector<bool>& fixed_in, double variance_inflation) {
+  static_assert(N <= kMaxParameters, "the covariance step works on at most kMaxParameters entries");
+  using Vec = Eigen::Matrix<double, N, 1>;
+  using Mat = Eigen::Matrix<double, N, N>;
+  const int n = N;
   BlockFit out;
   out.beta = start;
   out.determined.assign(static_cast<std::size_t>(n), false);
@@ -205,51 +270,56 @@ BlockFit BlockLeastSquares::fit(const WindowSums& stats, const LinearBlockModel&
   const ProductD& Sd = stats.mean_d;
   const ProductQ& Sq = stats.mean_q;
 
-  VecN beta = start;
+  const Eigen::Matrix<double, kBlockSizeD, N> G_d = model.G_d;
+  const Eigen::Matrix<double, kBlockSizeQ, N> G_q = model.G_q;
+  Vec beta = start;
   Eigen::Matrix<double, kBlockSizeD, 1> vd;
   Eigen::Matrix<double, kBlockSizeQ, 1> vq;
-  JacobianN<kBlockSizeD> Jd;
-  JacobianN<kBlockSizeQ> Jq;
-  const auto objective = [&](const VecN& b) {
+  Eigen::Matrix<double, kBlockSizeD, N> Jd;
+  Eigen::Matrix<double, kBlockSizeQ, N> Jq;
+  // The fitness at b (v at b); the Jacobians at beta, once per iteration and at the end.
+  const auto objective = [&](const Vec& b) {
     if (!(b(model.d_inductance) > 0) || !(b(model.q_inductance) > 0)) return std::numeric_limits<double>::infinity();
-    weights<kBlockSizeD>(model.G_d, kIntegralUd, b, model.d_inductance, vd, Jd);
-    weights<kBlockSizeQ>(model.G_q, kIntegralUq, b, model.q_inductance, vq, Jq);
-    return vd.dot(Sd * vd) + vq.dot(Sq * vq);
+    weights<kBlockSizeD, N>(G_d, kIntegralUd, b, model.d_inductance, vd);
+    weights<kBlockSizeQ, N>(G_q, kIntegralUq, b, model.q_inductance, vq);
+    return quadraticForm(vd, Sd) + quadraticForm(vq, Sq);
+  };
+  const auto jacobians = [&] {
+    weights<kBlockSizeD, N>(G_d, kIntegralUd, beta, model.d_inductance, vd, Jd);
+    weights<kBlockSizeQ, N>(G_q, kIntegralUq, beta, model.q_inductance, vq, Jq);
   };
   // Gauss-Newton on the exact residuals r = v(beta) . z, with the normal matrix equilibrated and
   // pseudo-inverted: eigen-directions the data do not determine get no update.
-  MatN A(n, n);
-  VecN g(n);
-  VecN scale(n);
+  Mat A;
+  Vec g;
+  Vec scale;
   double f = objective(beta);
   for (int iteration = 0; iteration < 30; ++iteration) {
-    A = Jd.transpose() * Sd * Jd + Jq.transpose() * Sq * Jq;
-    g = Jd.transpose() * Sd * vd + Jq.transpose() * Sq * vq;
+    jacobians();
+    A = normalMatrix(Jd, Sd) + normalMatrix(Jq, Sq);
+    g = gradient(Jd, Sd, vd) + gradient(Jq, Sq, vq);
     double amax = 0.0;
     for (int j = 0; j < n; ++j) amax = std::max(amax, fixed[j] ? 0.0 : A(j, j));
     if (!(amax > 0) || !std::isfinite(amax)) break;
     for (int j = 0; j < n; ++j) scale(j) = fixed[j] || !(A(j, j) > 1e-30 * amax) ? 0.0 : 1.0 / std::sqrt(A(j, j));
-    const MatN As = scale.asDiagonal() * A * scale.asDiagonal();
-    Eigen::SelfAdjointEigenSolver<MatN> eig(As);
-    const VecN ev = eig.eigenvalues();
+    const Mat As = scale.asDiagonal() * A * scale.asDiagonal();
+    Eigen::SelfAdjointEigenSolver<Mat> eig(As);
+    const Vec ev = eig.eigenvalues();
     const double evmax = ev.maxCoeff();
-    const VecN gs = scale.asDiagonal() * g;
-    VecN coeffs = eig.eigenvectors().transpose() * gs;
+    const Vec gs = scale.asDiagonal() * g;
+    Vec coeffs = eig.eigenvectors().transpose().lazyProduct(gs);
     for (int j = 0; j < n; ++j) coeffs(j) = ev(j) > 1e-10 * evmax ? coeffs(j) / ev(j) : 0.0;
-    const VecN step = -(scale.asDiagonal() * (eig.eigenvectors() * coeffs));
+    const Vec step = -(scale.asDiagonal() * eig.eigenvectors().lazyProduct(coeffs));
     // Backtracking keeps the inductances positive and the fitness falling.
     double t = 1.0;
-    VecN trial = beta + step;
+    Vec trial = beta + step;
     double ft = objective(trial);
     while (!(ft <= f) && t > 1e-6) {
       t *= 0.5;
       trial = beta + t * step;
       ft = objective(trial);
     }
-    if (!(ft <= f)) {
-      objective(beta);  // restore v, J at beta
-      break;
-    }
+    if (!(ft <= f)) break;
     const double improvement = f - ft;
     beta = trial;
     f = ft;
@@ -257,10 +327,13 @@ BlockFit BlockLeastSquares::fit(const WindowSums& stats, const LinearBlockModel&
     for (int j = 0; j < n; ++j) relative_step = std::max(relative_step, std::abs(t * step(j)) / std::max(std::abs(beta(j)), 1e-300));
     if (improvement <= 1e-14 * f || relative_step < 1e-10) break;
   }
-  objective(beta);
+  jacobians();  // v and J at the optimum
   out.beta = beta;
   out.ok = std::isfinite(f);
-  residuals(stats, model, beta, out.mean_square_d, out.mean_square_q, out.noise_variance_d, out.noise_variance_q);
+  out.mean_square_d = std::max(0.0, quadraticForm(vd, Sd));
+  out.mean_square_q = std::max(0.0, quadraticForm(vq, Sq));
+  out.noise_variance_d = std::max(0.0, quadraticForm(vd, stats.mean_difference_d));
+  out.noise_variance_q = std::max(0.0, quadraticForm(vq, stats.mean_difference_q));
   // White noise n on the currents: r_k carries n_k - n_(k-M), and r_k - r_(k-1) carries four
   // noise terms, so the residual variance that noise explains is half the difference variance.
   out.noise_variance_d *= 0.5;
@@ -298,7 +371,7 @@ BlockFit BlockLeastSquares::fit(const WindowSums& stats, const LinearBlockModel&
   // at least the fit floor of noise-free data (WindowSums::min_noise_variance).
   const double floor_d = std::max({out.noise_variance_d, out.mean_square_d, stats.min_noise_variance, 1e-30});
   const double floor_q = std::max({out.noise_variance_q, out.mean_square_q, stats.min_noise_variance, 1e-30});
-  A = stats.weight * (Jd.transpose() * Sd * Jd / floor_d + Jq.transpose() * Sq * Jq / floor_q);
+  A = stats.weight * (normalMatrix(Jd, Sd) / floor_d + normalMatrix(Jq, Sq) / floor_q);
   // Covariance over the free entries. A direction with (almost) no information makes the entry
   // that dominates it undetermined; that entry is set aside and the rest are evaluated without it
   // (e.g. L_d without d-axis excitation leaves R_s, L_q, psi_f determined by the q axis).
@@ -332,5 +405,6 @@ BlockFit BlockLeastSquares::fit(const WindowSums& stats, const LinearBlockModel&
   }
   return out;
 }
+}  // namespace
 
 }  // namespace pmsm_param_id
