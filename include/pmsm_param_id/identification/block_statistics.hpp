@@ -337,6 +337,7 @@ class BlockStatistics {
   double lambda_ = 1.0;
   std::vector<Cumulative> ring_;  // capacity block_samples_ + 1
   std::size_t head_ = 0, count_ = 0;
+  PhasorTracker angle_phasor_;  // cos and sin of the logged angle, sample by sample
   // Stored sums are scaled by 1 / (product of the forgetting factors so far): adding a block is
   // then one rank-1 update with no pass over the matrices; rescaled before the scale overflows.
   ProductD S_d_ = ProductD::Zero(), dS_d_ = ProductD::Zero();

@@ -19,6 +19,7 @@ void BlockStatistics::reset() {
   nominal_period_ = 0.0;
   ring_.clear();
   head_ = count_ = 0;
+  angle_phasor_.reset();
   S_d_.setZero();
   S_q_.setZero();
   dS_d_.setZero();
@@ -372,11 +373,11 @@ bool BlockStatistics::add(const Sample& s) {
   c.u_d = s.u_d;
   c.u_q = s.u_q;
   c.theta_e = s.theta_e;
-  // With the logged angle: its cos and sin (the one cos/sin call of a sample: the inverter shape,
-  // the sensor terms and the next sample's mid-period angle take them from here), and the phase
-  // currents.
+  // With the logged angle: its cos and sin (the inverter shape, the sensor terms and the next
+  // sample's mid-period angle take them from here; advanced from the previous sample's, a cos/sin
+  // call every 64 samples: PhasorTracker), and the phase currents.
   if (std::isfinite(s.theta_e)) {
-    const Phasor angle = phasorOf(s.theta_e);
+    const Phasor angle = angle_phasor_.next(s.theta_e);
     c.cos_theta = angle.c;
     c.sin_theta = angle.s;
     if (settings_.sensor_gains) {
@@ -386,6 +387,7 @@ bool BlockStatistics::add(const Sample& s) {
     }
     inverterShapeAt(s, angle, c.shape_d, c.shape_q, &c.phase);
   } else {
+    angle_phasor_.reset();
     inverterShape(s, c.shape_d, c.shape_q, &c.phase);
   }
   // The bus voltage relative to the first one logged (a fixed reference, so that every block's
