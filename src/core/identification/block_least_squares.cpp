@@ -61,7 +61,8 @@ void weights(const Eigen::Matrix<double, R, N>& G, int voltage_row, const Eigen:
   J.col(inductance) -= v * inverse_L;
 }
 
-// a^T S b for the block sums S (symmetric, R x R) without a general matrix product: S b first.
+// J^T S J, J^T S v and v^T S v for the block sums S (R x R) as fixed-size lazy products (S times the
+// right-hand factor first), not general matrix products with packing.
 template <int R, int N>
 Eigen::Matrix<double, N, N> normalMatrix(const Eigen::Matrix<double, R, N>& J, const Eigen::Matrix<double, R, R>& S) {
   const Eigen::Matrix<double, R, N> SJ = S.lazyProduct(J);
@@ -212,11 +213,9 @@ void residualsOf(const WindowSums& stats, const LinearBlockModel& model, const E
                  double& ms_q, double& diff_ms_d, double& diff_ms_q) {
   Eigen::Matrix<double, kBlockSizeD, 1> vd;
   Eigen::Matrix<double, kBlockSizeQ, 1> vq;
-  Eigen::Matrix<double, kBlockSizeD, N> Jd;
-  Eigen::Matrix<double, kBlockSizeQ, N> Jq;
   const Eigen::Matrix<double, N, 1> b = beta;
-  weights<kBlockSizeD, N>(model.G_d, kIntegralUd, b, model.d_inductance, vd, Jd);
-  weights<kBlockSizeQ, N>(model.G_q, kIntegralUq, b, model.q_inductance, vq, Jq);
+  weights<kBlockSizeD, N>(model.G_d, kIntegralUd, b, model.d_inductance, vd);
+  weights<kBlockSizeQ, N>(model.G_q, kIntegralUq, b, model.q_inductance, vq);
   ms_d = std::max(0.0, quadraticForm(vd, stats.mean_d));
   ms_q = std::max(0.0, quadraticForm(vq, stats.mean_q));
   diff_ms_d = std::max(0.0, quadraticForm(vd, stats.mean_difference_d));
