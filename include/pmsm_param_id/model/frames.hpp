@@ -24,8 +24,8 @@ inline Vec2 rotate(Vec2 v, double angle) { return rotate(v, phasorOf(angle)); }
 /// The phasor of angle + delta from that of angle: e^{j delta} by the Taylor series of cos and sin
 /// (terms to delta^12; for |delta| <= 0.25 the remainder is below 1e-17, under half an ulp), then
 /// the angle-sum identity. One period's turn of the rotor (delta = omega_e T / 2 at mid-period) is
-/// small, and a cos/sin call costs about as much as the rest of a sample's block update. A larger
-/// delta (or NaN) takes cos and sin of angle + delta.
+/// small, and a cos/sin call (10-20 ns here) was a fifth of a sample's block update. A larger delta
+/// (or NaN) takes cos and sin of angle + delta.
 inline Phasor advance(Phasor e, double angle, double delta) {
   if (!(std::abs(delta) <= 0.25)) return phasorOf(angle + delta);
   const double d2 = delta * delta;
