@@ -938,7 +938,7 @@ int runPerf(const std::string& scenario_path, const std::string& methods_arg, co
   for (const std::string& method : methods) {
     IdentifierConfig c = base;
     c.method = method;
-    const bool swarm = method == "fbdapso" || method == "sapso" || method == "pso";
+    const bool swarm = isSwarmMethod(method);
     std::vector<double> pass_rates, pass_ratios;
     std::uint64_t samples = 0;
     for (int r = 0; r < repeat; ++r) {
@@ -997,7 +997,7 @@ int runPerf(const std::string& scenario_path, const std::string& methods_arg, co
   }
   std::printf("%-9s %-10s %14s %12s %14s\n", "method", "rate", "samples/s", "ns/sample", "RT x");
   for (const std::string& method : methods) {
-    if (method != "fbdapso" && method != "sapso" && method != "pso") continue;
+    if (!isSwarmMethod(method)) continue;
     for (const auto& [name, recording] : recordings) {
       IdentifierConfig c = paper;
       c.method = method;

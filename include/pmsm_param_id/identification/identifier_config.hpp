@@ -106,6 +106,8 @@ struct IdentifierConfig {
 /// Known method names, in the order reports use.
 const std::string& methodList();  // "fbdapso, sapso, pso, ekf, rls, wls"
 bool isKnownMethod(const std::string& m);
+/// fbdapso, sapso or pso: a particle swarm on the configured fitness.
+bool isSwarmMethod(const std::string& m);
 
 /// Reads a YAML file over the defaults above; every key is optional, an unknown key is an error.
 /// ConfigError names the file and key.

@@ -8,9 +8,8 @@ const std::string& methodList() {
   static const std::string list = "fbdapso, sapso, pso, ekf, rls, wls";
   return list;
 }
-bool isKnownMethod(const std::string& m) {
-  return m == "fbdapso" || m == "sapso" || m == "pso" || m == "ekf" || m == "rls" || m == "wls";
-}
+bool isSwarmMethod(const std::string& m) { return m == "fbdapso" || m == "sapso" || m == "pso"; }
+bool isKnownMethod(const std::string& m) { return isSwarmMethod(m) || m == "ekf" || m == "rls" || m == "wls"; }
 
 void validate(const IdentifierConfig& c, const std::string& source) {
   const auto fail = [&](const std::string& key, const std::string& msg) {
