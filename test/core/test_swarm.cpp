@@ -185,6 +185,30 @@ TEST(ParticleSwarm, CycleRestartRestoresTheTemperatureSchedule) {
   EXPECT_NEAR(s.temperature(), 800.0, 1e-9);
 }
 
+// A cycle restart re-evaluates what the data have changed and takes the rest from this iteration
+// (accepted moves, personal bests at their position). The fitness here grows with time, so a value
+// left from older data is lower than the present one: kept by mistake, it would win the global
+// best, and the best's value would differ from the present fitness at the best.
+TEST(ParticleSwarm, ARestartLeavesNoStaleFitness) {
+  double t = 0.0;
+  const auto f = [&t](const ParameterVector& p) { return (1.0 + t) * bowl(p) + t; };
+  const std::vector<std::shared_ptr<AcceptancePolicy>> policies{
+      std::make_shared<AlwaysAccept>(), std::make_shared<MetropolisAcceptance>(1000.0, 0.8),
+      std::make_shared<BackfireDoubleAnnealing>(800.0, 500.0, 0.8, 0.9, 0.001)};
+  for (const auto& policy : policies) {
+    ParticleSwarm s(SwarmSettings{}, policy, {0.5, 0.0005, 0.0005, 0.02}, {10.0, 0.03, 0.03, 0.6}, 3);
+    int restarts = 0;
+    for (int i = 0; i < 500; ++i) {
+      t = 0.01 * i;
+      s.iterate(f);
+      if (s.iterationInCycle() != 0) continue;
+      ++restarts;
+      EXPECT_EQ(s.bestFitness(), f(s.best())) << policy->name() << " iteration " << i;
+    }
+    EXPECT_EQ(restarts, 10) << policy->name();
+  }
+}
+
 // The swarm decides for all particles at once with vector loops; every decision and temperature
 // must be the one the policy's accept() gives particle by particle (better, equal, worse, NaN,
 // draws near the Metropolis boundary where exp() decides).

@@ -4,7 +4,6 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
-#include <functional>
 #include <limits>
 #include <memory>
 #include <string>
@@ -175,8 +174,6 @@ struct SwarmSettings {
 /// Minimises f over the box [lower, upper] in coordinates normalised to [0, 1] per dimension.
 class ParticleSwarm {
  public:
-  using Fitness = std::function<double(const ParameterVector&)>;
-
   ParticleSwarm(const SwarmSettings& settings, std::shared_ptr<const AcceptancePolicy> policy,
                 const ParameterVector& lower, const ParameterVector& upper, std::uint64_t seed,
                 const ParameterVector* initial_guess = nullptr);
@@ -186,8 +183,13 @@ class ParticleSwarm {
   void setBounds(const ParameterVector& lower, const ParameterVector& upper);
   /// The global best lies on a face of the box, per dimension.
   std::array<bool, kParameterCount> bestAtBound() const;
-  /// Re-evaluates every position and personal best with f (the fitness changes as data arrives).
-  void evaluateAll(const Fitness& f);
+  /// Re-evaluates every position and personal best with f (the fitness changes as data arrives),
+  /// then the personal and global bests. A personal best equal to its position takes the
+  /// position's value (the same point: the same number) instead of a second evaluation.
+  template <class F>
+  void evaluateAll(const F& f) {
+    evaluateStale(f, false);
+  }
   /// One iteration of Eq. (4) with the policy's acceptance; counter reset every reset_iterations.
   template <class F>
   void iterate(const F& f);
@@ -226,7 +228,37 @@ class ParticleSwarm {
     return u;
   }
   ParameterVector parametersOf(const std::vector<double>& a, std::size_t i) const { return toParameters(pointOf(a, i)); }
-  void restartCycle(const Fitness& f);
+  /// evaluateAll(), where `moves_current` leaves out the positions this iteration's accepted moves
+  /// reached: their fitness was computed on the present data (the cycle restart, right after an
+  /// iteration on the same sample).
+  template <class F>
+  void evaluateStale(const F& f, bool moves_current) {
+    const std::size_t m = gatherStale(moves_current);
+    evaluate(f, batch_points_.data(), m, stale_f_.data());
+    takeStale(moves_current);
+  }
+  /// The points evaluateStale() evaluates, in batch_points_, particle by particle (the position,
+  /// then the personal best); their count.
+  std::size_t gatherStale(bool moves_current);
+  /// Their values (stale_f_) into f_ and f_pbest_, then the personal and global bests.
+  void takeStale(bool moves_current);
+  /// f at points[0, m) into out: in one call where F has batch().
+  template <class F>
+  void evaluate(const F& f, const ParameterVector* points, std::size_t m, double* out) {
+    if constexpr (HasBatch<F>::value) {
+      f.batch(points, m, out);
+    } else {
+      for (std::size_t i = 0; i < m; ++i) out[i] = f(points[i]);
+    }
+    evaluations_ += m;
+  }
+  /// A new cycle: the stale values re-evaluated, temperatures reset, velocities re-drawn.
+  template <class F>
+  void restartCycle(const F& f) {
+    evaluateStale(f, true);
+    restartTemperaturesAndVelocities();
+  }
+  void restartTemperaturesAndVelocities();
   /// Eq. (4) for every particle: velocities and candidate positions (move_x_, move_v_, and in
   /// parameter units batch_points_) from this iteration's draws r_.
   void proposeMoves(double inertia);
@@ -245,7 +277,10 @@ class ParticleSwarm {
   std::vector<double> accepted_, improved_;    // flags: 1 or 0
   std::vector<double> move_x_, move_v_, move_f_;  // this iteration's candidates (reused, no allocation)
   std::vector<double> r_;  // this iteration's draws: r1, r2 (by dimension), the Metropolis r per particle
-  std::vector<ParameterVector> batch_points_;  // the candidates in parameter units (padded)
+  // The points to evaluate in parameter units: the candidates (padded), or the stale positions and
+  // personal bests (up to two per particle).
+  std::vector<ParameterVector> batch_points_;
+  std::vector<double> stale_f_;  // the values of the stale points
   /// F has batch(const ParameterVector*, size_t, double*): every particle in one call.
   template <class F, class = void>
   struct HasBatch : std::false_type {};
@@ -269,12 +304,7 @@ void ParticleSwarm::iterate(const F& f) {
   //    synchronous (gbest changes at the end of the iteration), so the order does not matter, and
   //    20 independent evaluations back to back keep the CPU busy.
   proposeMoves(w);
-  if constexpr (HasBatch<F>::value) {  // all particles in one call (the identifier's fitnesses)
-    f.batch(batch_points_.data(), n, move_f_.data());
-  } else {
-    for (std::size_t i = 0; i < n; ++i) move_f_[i] = f(batch_points_[i]);
-  }
-  evaluations_ += n;
+  evaluate(f, batch_points_.data(), n, move_f_.data());  // all particles in one call where f can
   // 2. Acceptance (Eq. 15-17), temperatures (Eq. 7-8), personal and global bests.
   acceptMoves();
   ++total_iterations_;

@@ -272,7 +272,8 @@ ParticleSwarm::ParticleSwarm(const SwarmSettings& settings, std::shared_ptr<cons
   delta_.assign(padded_, 0.0);
   accepted_.assign(padded_, 0.0);
   improved_.assign(padded_, 0.0);
-  batch_points_.assign(padded_, ParameterVector{});
+  batch_points_.assign(2 * padded_, ParameterVector{});
+  stale_f_.assign(2 * padded_, 0.0);
   th_.resize(padded_);
   for (std::size_t i = 0; i < n_; ++i) {
     for (int d = 0; d < kParameterCount; ++d) {
@@ -321,12 +322,21 @@ void ParticleSwarm::acceptMoves() {
   policy_->endIterationAll(padded, th_);
 }
 
-void ParticleSwarm::evaluateAll(const Fitness& f) {
-  f_gbest_ = std::numeric_limits<double>::infinity();
+std::size_t ParticleSwarm::gatherStale(bool moves_current) {
+  std::size_t m = 0;
   for (std::size_t i = 0; i < n_; ++i) {
-    f_[i] = f(parametersOf(x_, i));
-    f_pbest_[i] = f(parametersOf(pbest_, i));
-    evaluations_ += 2;
+    if (!(moves_current && accepted_[i] > 0.5)) batch_points_[m++] = parametersOf(x_, i);
+    if (pointOf(pbest_, i) != pointOf(x_, i)) batch_points_[m++] = parametersOf(pbest_, i);
+  }
+  return m;
+}
+
+void ParticleSwarm::takeStale(bool moves_current) {
+  f_gbest_ = std::numeric_limits<double>::infinity();
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < n_; ++i) {
+    if (!(moves_current && accepted_[i] > 0.5)) f_[i] = stale_f_[k++];
+    f_pbest_[i] = pointOf(pbest_, i) != pointOf(x_, i) ? stale_f_[k++] : f_[i];
     if (f_[i] < f_pbest_[i]) {
       f_pbest_[i] = f_[i];
       for (int d = 0; d < kParameterCount; ++d) at(pbest_, d, i) = at(x_, d, i);
@@ -339,12 +349,11 @@ void ParticleSwarm::evaluateAll(const Fitness& f) {
   evaluated_ = true;
 }
 
-void ParticleSwarm::restartCycle(const Fitness& f) {
+void ParticleSwarm::restartTemperaturesAndVelocities() {
   // A new cycle starts like the algorithm itself: inertia w_max (via k_ = 0), temperature T1 and
   // velocities drawn at random, warm-started from the current positions and bests. Without the
   // fresh velocities a swarm that has collapsed (x = pbest = gbest, v ~ 0) can never move again,
   // even when new data show that its point is wrong (doc/algorithm.md).
-  evaluateAll(f);
   for (std::size_t i = 0; i < n_; ++i) {
     ParticleTemperature t;
     policy_->reset(t);

@@ -26,8 +26,7 @@ double SwarmIdentifier::fitnessAt(const ParameterVector& p) const {
 }
 
 namespace {
-/// The paper's fitness as the swarm sees it: one vector or every particle at once. Holds a pointer
-/// (the swarm copies its fitness into a std::function at cycle restarts).
+/// The paper's fitness as the swarm sees it: one vector or every particle at once.
 struct OutputErrorFitness {
   const OutputErrorWindow* window;
   double operator()(const ParameterVector& p) const { return (*window)(p); }
