@@ -274,7 +274,7 @@ class ParticleSwarm {
   std::vector<double> f_, f_pbest_;            // fitness at x_ and at pbest_
   SwarmTemperatures th_;
   std::vector<double> delta_;                  // this iteration's normalised fitness increase (Eq. 15)
-  std::vector<double> accepted_, improved_;    // flags: 1 or 0
+  std::vector<double> accepted_;               // this iteration's decisions: 1 or 0
   std::vector<double> move_x_, move_v_, move_f_;  // this iteration's candidates (reused, no allocation)
   std::vector<double> r_;  // this iteration's draws: r1, r2 (by dimension), the Metropolis r per particle
   // The points to evaluate in parameter units: the candidates (padded), or the stale positions and

@@ -164,27 +164,35 @@ struct Settled {
 };
 
 /// Accepted moves take their position, velocity and fitness; those better than their personal best
-/// replace it; the best of those replaces the global best f_gbest where it is lower (the first such
-/// particle on a tie, as a particle-by-particle search with `<` finds). Arrays by coordinate, n
-/// padded (padding particles never improve: their fitness stays infinite); `count` real particles.
-/// Four particles at a time with all their coordinates, in registers.
+/// replace it; the best of those replaces the global best f_gbest where it is lower. Arrays by
+/// coordinate, n padded (padding particles never improve: their fitness stays infinite); `count`
+/// real particles. Four particles at a time with all their coordinates, in registers; per lane,
+/// the lowest improved move and its particle (the first on a tie), and the counts of worse moves
+/// proposed and taken. Of the lanes' lowest, the lowest particle on a tie: the first such
+/// particle, as a particle-by-particle search with `<` finds.
 PMSM_VECTOR_CLONES
 Settled settleMoves(std::size_t n, std::size_t count, const double* __restrict accepted,
                     const double* __restrict delta, const double* __restrict move_f,
                     const double* __restrict move_x, const double* __restrict move_v, double f_gbest,
-                    double* __restrict f, double* __restrict f_pbest, double* __restrict improved,
-                    double* __restrict x, double* __restrict v, double* __restrict pbest) {
+                    double* __restrict f, double* __restrict f_pbest, double* __restrict x, double* __restrict v,
+                    double* __restrict pbest) {
   constexpr double inf = std::numeric_limits<double>::infinity();
   const Lanes4 half = {0.5, 0.5, 0.5, 0.5}, one = {1.0, 1.0, 1.0, 1.0}, zero = {};
-  Lanes4 lowest = {inf, inf, inf, inf};  // the lowest improved move per lane
+  const Lanes4 real_count = Lanes4{} + static_cast<double>(count);
+  Lanes4 index = {0.0, 1.0, 2.0, 3.0};  // the lanes' particles
+  Lanes4 lowest = {inf, inf, inf, inf}, lowest_index = zero, proposed = zero, taken_worse = zero;
   for (std::size_t i = 0; i < n; i += kSwarmLanes) {
     const Lanes4 moved = load4(move_f + i), own_best = load4(f_pbest + i);
     const Mask4 taken = load4(accepted + i) > half;
     const Mask4 better = taken & (moved < own_best);
+    const Mask4 worse = (index < real_count) & (load4(delta + i) > zero);
+    proposed += select4(worse, one, zero);
+    taken_worse += select4(worse & taken, one, zero);
     store4(f + i, select4(taken, moved, load4(f + i)));
     store4(f_pbest + i, select4(better, moved, own_best));
-    store4(improved + i, select4(better, one, zero));
-    lowest = select4(better & (moved < lowest), moved, lowest);  // an improved move is never NaN
+    const Mask4 lower = better & (moved < lowest);  // an improved move is never NaN
+    lowest = select4(lower, moved, lowest);
+    lowest_index = select4(lower, index, lowest_index);
     for (int d = 0; d < kParameterCount; ++d) {
       const std::size_t o = static_cast<std::size_t>(d) * n + i;
       const Lanes4 candidate = load4(move_x + o);
@@ -192,20 +200,17 @@ Settled settleMoves(std::size_t n, std::size_t count, const double* __restrict a
       store4(v + o, select4(taken, load4(move_v + o), load4(v + o)));
       store4(pbest + o, select4(better, candidate, load4(pbest + o)));
     }
+    index += 4.0;
   }
   Settled out{count, 0, 0};
-  for (std::size_t i = 0; i < count; ++i) {
-    const bool worse = delta[i] > 0;
-    out.worse_proposed += worse;
-    out.worse_accepted += worse & (accepted[i] > 0.5);
-  }
+  out.worse_proposed = static_cast<std::uint64_t>((proposed[0] + proposed[1]) + (proposed[2] + proposed[3]));
+  out.worse_accepted = static_cast<std::uint64_t>((taken_worse[0] + taken_worse[1]) + (taken_worse[2] + taken_worse[3]));
   const double best = std::min(std::min(lowest[0], lowest[1]), std::min(lowest[2], lowest[3]));
   if (best < f_gbest) {
-    for (std::size_t i = 0; i < count; ++i)
-      if (improved[i] > 0.5 && move_f[i] == best) {
-        out.best = i;
-        break;
-      }
+    double first = inf;
+    for (std::size_t l = 0; l < kSwarmLanes; ++l)
+      if (lowest[l] == best) first = std::min(first, lowest_index[l]);
+    out.best = static_cast<std::size_t>(first);
   }
   return out;
 }
@@ -271,7 +276,6 @@ ParticleSwarm::ParticleSwarm(const SwarmSettings& settings, std::shared_ptr<cons
   move_f_.assign(padded_, std::numeric_limits<double>::infinity());
   delta_.assign(padded_, 0.0);
   accepted_.assign(padded_, 0.0);
-  improved_.assign(padded_, 0.0);
   batch_points_.assign(2 * padded_, ParameterVector{});
   stale_f_.assign(2 * padded_, 0.0);
   th_.resize(padded_);
@@ -311,8 +315,8 @@ void ParticleSwarm::acceptMoves() {
   // The moves, personal bests, the global best, and what tells the policies apart: moves to a
   // worse position proposed and taken.
   const Settled settled = settleMoves(padded, n, accepted_.data(), delta_.data(), move_f_.data(), move_x_.data(),
-                                      move_v_.data(), f_gbest_, f_.data(), f_pbest_.data(), improved_.data(),
-                                      x_.data(), v_.data(), pbest_.data());
+                                      move_v_.data(), f_gbest_, f_.data(), f_pbest_.data(), x_.data(), v_.data(),
+                                      pbest_.data());
   worse_proposed_ += settled.worse_proposed;
   worse_accepted_ += settled.worse_accepted;
   if (settled.best < n) {
