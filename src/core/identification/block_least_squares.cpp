@@ -1,5 +1,6 @@
 #include "pmsm_param_id/identification/block_least_squares.hpp"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <cmath>
 #include <limits>
@@ -301,14 +302,30 @@ BlockFit fitModel(const WindowSums& stats, const LinearBlockModel& model, const 
     for (int j = 0; j < n; ++j) amax = std::max(amax, fixed[j] ? 0.0 : A(j, j));
     if (!(amax > 0) || !std::isfinite(amax)) break;
     for (int j = 0; j < n; ++j) scale(j) = fixed[j] || !(A(j, j) > 1e-30 * amax) ? 0.0 : 1.0 / std::sqrt(A(j, j));
-    const Mat As = scale.asDiagonal() * A * scale.asDiagonal();
-    Eigen::SelfAdjointEigenSolver<Mat> eig(As);
-    const Vec ev = eig.eigenvalues();
-    const double evmax = ev.maxCoeff();
+    Mat As = scale.asDiagonal() * A * scale.asDiagonal();
     const Vec gs = scale.asDiagonal() * g;
-    Vec coeffs = eig.eigenvectors().transpose().lazyProduct(gs);
-    for (int j = 0; j < n; ++j) coeffs(j) = ev(j) > 1e-10 * evmax ? coeffs(j) / ev(j) : 0.0;
-    const Vec step = -(scale.asDiagonal() * eig.eigenvectors().lazyProduct(coeffs));
+    Vec step;
+    // Well conditioned (the usual case), the pseudo-inverse is the inverse: a Cholesky solve gives
+    // the step for a tenth of an eigen-decomposition's cost (six steps per fit from the box's
+    // centre, every 500 samples). An entry left out (scale 0: its row, column and gradient are
+    // zero) gets a unit diagonal, which leaves its step at zero. A reciprocal condition of at least
+    // 1e-6 (the 1-norm's, which bounds the 2-norm's from below for a symmetric matrix; the estimate
+    // is within a small factor) puts every eigenvalue far above the 1e-10 cut of the other path.
+    for (int j = 0; j < n; ++j)
+      if (scale(j) == 0.0) As(j, j) = 1.0;
+    const Eigen::LDLT<Mat> ldlt(As);
+    if (ldlt.info() == Eigen::Success && ldlt.isPositive() && ldlt.rcond() > 1e-6) {
+      step = -(scale.asDiagonal() * ldlt.solve(gs));
+    } else {
+      for (int j = 0; j < n; ++j)
+        if (scale(j) == 0.0) As(j, j) = 0.0;
+      Eigen::SelfAdjointEigenSolver<Mat> eig(As);
+      const Vec ev = eig.eigenvalues();
+      const double evmax = ev.maxCoeff();
+      Vec coeffs = eig.eigenvectors().transpose().lazyProduct(gs);
+      for (int j = 0; j < n; ++j) coeffs(j) = ev(j) > 1e-10 * evmax ? coeffs(j) / ev(j) : 0.0;
+      step = -(scale.asDiagonal() * eig.eigenvectors().lazyProduct(coeffs));
+    }
     // Backtracking keeps the inductances positive and the fitness falling.
     double t = 1.0;
     Vec trial = beta + step;
