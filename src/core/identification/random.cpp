@@ -18,7 +18,7 @@ std::uint64_t splitmix(std::uint64_t& state) {
 typedef std::uint64_t Lanes __attribute__((vector_size(8 * BlockRandom::kLanes)));
 typedef double LaneDoubles __attribute__((vector_size(8 * BlockRandom::kLanes)));
 
-PMSM_VECTOR_CLONES
+PMSM_INTEGER_VECTOR_CLONES
 void fillLanes(std::uint64_t* s0p, std::uint64_t* s1p, std::uint64_t* s2p, std::uint64_t* s3p, double* out,
                std::size_t n) {
   Lanes s0, s1, s2, s3;  // held in registers for the whole block
