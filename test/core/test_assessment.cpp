@@ -10,6 +10,7 @@
 #include "pmsm_param_id/identification/metrics.hpp"
 #include "pmsm_param_id/identification/monitor.hpp"
 #include "pmsm_param_id/identification/online_identifier.hpp"
+#include "pmsm_param_id/identification/sample_period.hpp"
 #include "pmsm_param_id/io/config_error.hpp"
 #include "pmsm_param_id/io/log_format.hpp"
 #include "pmsm_param_id/io/sample_csv.hpp"
@@ -323,6 +324,27 @@ TEST(Timing, ADecimatedStreamIsReBlockedAtItsNewRate) {
   const Estimate e = id->estimate();
   EXPECT_EQ(e.counters.period_changes, 1u);
   EXPECT_NEAR(e.sample_period, 2e-4, 1e-12);
+}
+
+// The rate watch re-blocks when the median of its 32 steps (the step of rank 16) lies more than
+// 30 % from the nominal period: at the boundary, 16 long steps move it and 15 do not; 17 short
+// steps move it and 16 do not. (The watch counts the steps beyond the limits and selects the
+// median only where it can lie beyond them.)
+TEST(Timing, TheRateWatchFollowsTheMedianOfItsWindow) {
+  // 1e-4 s nominal; then a watch window whose first `count` steps are `step` long.
+  const auto watch = [](std::size_t count, double step) {
+    SamplePeriodEstimator estimator;
+    for (std::size_t k = 0; k < SamplePeriodEstimator::kStartupSteps; ++k) estimator.addStep(1e-4);
+    bool changed = false;
+    for (std::size_t k = 0; k < SamplePeriodEstimator::kWatchSteps; ++k)
+      changed = estimator.addStep(k < count ? step : 1e-4) || changed;
+    return std::make_pair(changed, estimator.nominal());
+  };
+  EXPECT_EQ(watch(16, 2e-4), std::make_pair(true, 2e-4));
+  EXPECT_EQ(watch(15, 2e-4), std::make_pair(false, 1e-4));
+  EXPECT_EQ(watch(17, 0.5e-4), std::make_pair(true, 0.5e-4));
+  EXPECT_EQ(watch(16, 0.5e-4), std::make_pair(false, 1e-4));
+  EXPECT_EQ(watch(32, 0.5e-4), std::make_pair(true, 0.5e-4));
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -29,6 +29,7 @@ class SamplePeriodEstimator {
   double nominal_ = 0.0;
   std::array<double, kWatchSteps> recent_{};
   std::size_t count_ = 0;
+  std::size_t above_ = 0, below_ = 0;  ///< steps of the watch window above 1.3 nominal, below nominal / 1.3
 };
 
 }  // namespace pmsm_param_id
