@@ -308,14 +308,20 @@ BlockFit fitModel(const WindowSums& stats, const LinearBlockModel& model, const 
     // Well conditioned (the usual case), the pseudo-inverse is the inverse: an LDLT solve gives the
     // step at a fraction of an eigen-decomposition's cost (the fit every 500 samples takes about six
     // steps; the decompositions were 2.4 % of an FBDAPSO update). An entry left out (scale 0: its
-    // row, column and gradient are zero) gets a unit diagonal, which leaves its step at zero. For a
-    // symmetric matrix the 1-norm's reciprocal condition is at most the 2-norm's, lambda_min /
-    // lambda_max; an estimate above 1e-6 (estimates can read high, rarely by a factor of ten) keeps
-    // every eigenvalue four decades above the other path's 1e-10 cut.
+    // row, column and gradient are zero) gets a unit diagonal, which leaves its step at zero. The
+    // condition number in the 1-norm, from the inverse itself (N <= 7: a few solves), bounds the
+    // 2-norm's, lambda_max / lambda_min, from above for a symmetric matrix: below 1e6, every
+    // eigenvalue lies four decades above the other path's 1e-10 cut.
     for (int j = 0; j < n; ++j)
       if (scale(j) == 0.0) As(j, j) = 1.0;
     const Eigen::LDLT<Mat> ldlt(As);
-    if (ldlt.info() == Eigen::Success && ldlt.isPositive() && ldlt.rcond() > 1e-6) {
+    bool direct = ldlt.info() == Eigen::Success && ldlt.isPositive();
+    if (direct) {
+      const Mat inverse = ldlt.solve(Mat::Identity());
+      const double condition = As.cwiseAbs().colwise().sum().maxCoeff() * inverse.cwiseAbs().colwise().sum().maxCoeff();
+      direct = condition < 1e6;  // false for NaN too
+    }
+    if (direct) {
       step = -(scale.asDiagonal() * ldlt.solve(gs));
     } else {
       for (int j = 0; j < n; ++j)
