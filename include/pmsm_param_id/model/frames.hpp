@@ -15,6 +15,8 @@ struct Phasor {
   double c = 1.0, s = 0.0;
 };
 inline Phasor phasorOf(double angle) { return {std::cos(angle), std::sin(angle)}; }
+/// e^{-j angle} from e^{j angle}.
+inline Phasor conjugate(Phasor e) { return {e.c, -e.s}; }
 
 /// e^{j angle} v for the angle's phasor.
 inline Vec2 rotate(Vec2 v, Phasor e) { return {e.c * v.x - e.s * v.y, e.s * v.x + e.c * v.y}; }

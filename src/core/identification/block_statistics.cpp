@@ -123,11 +123,10 @@ namespace {
 /// inverterShape() with the logged angle, given as its phasor: the phase currents from the measured
 /// d-q currents, then the d-q image of their signs.
 void inverterShapeAt(const Sample& s, Phasor angle, double& shape_d, double& shape_q, std::array<double, 3>* phase) {
-  const double cs = angle.c, sn = angle.s;
-  const std::array<double, 3> i = inverseClarke({cs * s.i_d - sn * s.i_q, sn * s.i_d + cs * s.i_q});
-  const Vec2 v = clarke(sign(i[0]), sign(i[1]), sign(i[2]));
-  shape_d = cs * v.x + sn * v.y;
-  shape_q = -sn * v.x + cs * v.y;
+  const std::array<double, 3> i = phaseFromDq(s.i_d, s.i_q, angle);
+  const Vec2 shape = rotate(clarke(sign(i[0]), sign(i[1]), sign(i[2])), conjugate(angle));
+  shape_d = shape.x;
+  shape_q = shape.y;
   if (phase) *phase = i;
 }
 }  // namespace
@@ -173,10 +172,10 @@ void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulativ
       mean[static_cast<std::size_t>(k)] = f * sa + (1.0 - f) * sb;
     }
   }
-  // Into the rotor frame at mid-period (`mid`: the phasor of the rotor angle there): rotate(v, -mid).
-  const Vec2 v = clarke(mean[0], mean[1], mean[2]);
-  int_d = dt * (mid.c * v.x + mid.s * v.y);
-  int_q = dt * (mid.c * v.y - mid.s * v.x);
+  // Into the rotor frame at mid-period (`mid`: the phasor of the rotor angle there).
+  const Vec2 v = rotate(clarke(mean[0], mean[1], mean[2]), conjugate(mid));
+  int_d = dt * v.x;
+  int_q = dt * v.y;
 }
 
 BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative& p, const Sample& s, double dt,
@@ -203,7 +202,7 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
     double J[2][2];
   };
   const auto evaluate = [&](double d, double q, double cos_t, double sin_t) {
-    const std::array<double, 3> i = inverseClarke({cos_t * d - sin_t * q, sin_t * d + cos_t * q});
+    const std::array<double, 3> i = phaseFromDq(d, q, Phasor{cos_t, sin_t});
     const double wide = width > 0 ? 2.0 * width : 0.02 * std::sqrt(d * d + q * q) + 1e-12;
     static const double rows[3][2] = {{1.0, 0.0}, {-0.5, 0.8660254037844386}, {-0.5, -0.8660254037844386}};
     std::array<double, 3> narrow{}, wide_shape{};
@@ -223,8 +222,7 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
         for (int b = 0; b < 2; ++b) M[a][b] += (2.0 / 3.0) * slope * rows[k][a] * rows[k][b];
     }
     const auto toDq = [&](const std::array<double, 3>& x) {
-      const Vec2 ab = clarke(x[0], x[1], x[2]);
-      return Vec2{cos_t * ab.x + sin_t * ab.y, -sin_t * ab.x + cos_t * ab.y};
+      return rotate(clarke(x[0], x[1], x[2]), conjugate(Phasor{cos_t, sin_t}));
     };
     Node out;
     const Vec2 n = toDq(narrow), w = toDq(wide_shape);
@@ -325,8 +323,7 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
     observer_i_q_ = s.i_q;
     out = ObservedPeriod{};
   }
-  const double cs = std::cos(s.theta_e), ss = std::sin(s.theta_e);
-  out.phase = inverseClarke({cs * observer_i_d_ - ss * observer_i_q_, ss * observer_i_d_ + cs * observer_i_q_});
+  out.phase = phaseFromDq(observer_i_d_, observer_i_q_, phasorOf(s.theta_e));
   return out;
 }
 
