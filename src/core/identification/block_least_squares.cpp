@@ -6,6 +6,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 namespace pmsm_param_id {
 
@@ -79,6 +80,30 @@ template <int R>
 double quadraticForm(const Eigen::Matrix<double, R, 1>& v, const Eigen::Matrix<double, R, R>& S) {
   const Eigen::Matrix<double, R, 1> Sv = S.lazyProduct(v);
   return v.dot(Sv);
+}
+
+/// The mean squares of the block residuals (v^T S v over the window's sums) and of their
+/// differences, per axis, for the weight vectors vd, vq.
+void residualMeanSquares(const WindowSums& stats, const Eigen::Matrix<double, kBlockSizeD, 1>& vd,
+                         const Eigen::Matrix<double, kBlockSizeQ, 1>& vq, double& ms_d, double& ms_q,
+                         double& diff_ms_d, double& diff_ms_q) {
+  ms_d = std::max(0.0, quadraticForm(vd, stats.mean_d));
+  ms_q = std::max(0.0, quadraticForm(vq, stats.mean_q));
+  diff_ms_d = std::max(0.0, quadraticForm(vd, stats.mean_difference_d));
+  diff_ms_q = std::max(0.0, quadraticForm(vq, stats.mean_difference_q));
+}
+
+/// f(std::integral_constant<int, N>{}) for the model's parameter count N, 4 to 7: the fit and the
+/// residuals are instantiated per model size, so that every matrix has its size at compile time.
+template <class F>
+auto forModelSize(const LinearBlockModel& model, F&& f) {
+  switch (model.size()) {
+    case 4: return f(std::integral_constant<int, 4>{});
+    case 5: return f(std::integral_constant<int, 5>{});
+    case 6: return f(std::integral_constant<int, 6>{});
+    case 7: return f(std::integral_constant<int, 7>{});
+  }
+  throw std::invalid_argument("a block model has 4 to 7 parameters, not " + std::to_string(model.size()));
 }
 
 /// The exact fit of a model with N parameters (BlockLeastSquares::fit).
@@ -217,38 +242,26 @@ void residualsOf(const WindowSums& stats, const LinearBlockModel& model, const E
   const Eigen::Matrix<double, N, 1> b = beta;
   weights<kBlockSizeD, N>(model.G_d, kIntegralUd, b, model.d_inductance, vd);
   weights<kBlockSizeQ, N>(model.G_q, kIntegralUq, b, model.q_inductance, vq);
-  ms_d = std::max(0.0, quadraticForm(vd, stats.mean_d));
-  ms_q = std::max(0.0, quadraticForm(vq, stats.mean_q));
-  diff_ms_d = std::max(0.0, quadraticForm(vd, stats.mean_difference_d));
-  diff_ms_q = std::max(0.0, quadraticForm(vq, stats.mean_difference_q));
+  residualMeanSquares(stats, vd, vq, ms_d, ms_q, diff_ms_d, diff_ms_q);
 }
 }  // namespace
 
 void BlockLeastSquares::residuals(const WindowSums& stats, const LinearBlockModel& model,
                                   const Eigen::VectorXd& beta, double& ms_d, double& ms_q, double& diff_ms_d,
                                   double& diff_ms_q) {
-  switch (model.size()) {
-    case 4: return residualsOf<4>(stats, model, beta, ms_d, ms_q, diff_ms_d, diff_ms_q);
-    case 5: return residualsOf<5>(stats, model, beta, ms_d, ms_q, diff_ms_d, diff_ms_q);
-    case 6: return residualsOf<6>(stats, model, beta, ms_d, ms_q, diff_ms_d, diff_ms_q);
-    case 7: return residualsOf<7>(stats, model, beta, ms_d, ms_q, diff_ms_d, diff_ms_q);
-  }
-  throw std::invalid_argument("a block model has 4 to 7 parameters, not " + std::to_string(model.size()));
+  forModelSize(model, [&](auto size) {
+    residualsOf<decltype(size)::value>(stats, model, beta, ms_d, ms_q, diff_ms_d, diff_ms_q);
+  });
 }
 
 BlockFit BlockLeastSquares::fit(const WindowSums& stats, const LinearBlockModel& model,
                                 const Eigen::VectorXd& start, const std::vector<bool>& fixed_in,
                                 double variance_inflation) {
-  // One instance per model size: every matrix of the iteration has its size at compile time, so
-  // that the small products are unrolled loops instead of general matrix products with packing
-  // (the fit ran every 500 samples and was ~8 % of a swarm's per-sample time).
-  switch (model.size()) {
-    case 4: return fitModel<4>(stats, model, start, fixed_in, variance_inflation);
-    case 5: return fitModel<5>(stats, model, start, fixed_in, variance_inflation);
-    case 6: return fitModel<6>(stats, model, start, fixed_in, variance_inflation);
-    case 7: return fitModel<7>(stats, model, start, fixed_in, variance_inflation);
-  }
-  throw std::invalid_argument("a block model has 4 to 7 parameters, not " + std::to_string(model.size()));
+  // One instance per model size: the small products are unrolled loops instead of general matrix
+  // products with packing (the fit ran every 500 samples and was ~8 % of a swarm's per-sample time).
+  return forModelSize(model, [&](auto size) {
+    return fitModel<decltype(size)::value>(stats, model, start, fixed_in, variance_inflation);
+  });
 }
 
 namespace {
@@ -353,10 +366,8 @@ BlockFit fitModel(const WindowSums& stats, const LinearBlockModel& model, const 
   jacobians();  // v and J at the optimum
   out.beta = beta;
   out.ok = std::isfinite(f);
-  out.mean_square_d = std::max(0.0, quadraticForm(vd, Sd));
-  out.mean_square_q = std::max(0.0, quadraticForm(vq, Sq));
-  out.noise_variance_d = std::max(0.0, quadraticForm(vd, stats.mean_difference_d));
-  out.noise_variance_q = std::max(0.0, quadraticForm(vq, stats.mean_difference_q));
+  residualMeanSquares(stats, vd, vq, out.mean_square_d, out.mean_square_q, out.noise_variance_d,
+                      out.noise_variance_q);
   // White noise n on the currents: r_k carries n_k - n_(k-M), and r_k - r_(k-1) carries four
   // noise terms, so the residual variance that noise explains is half the difference variance.
   out.noise_variance_d *= 0.5;
