@@ -242,6 +242,11 @@ class ParticleSwarm {
   std::size_t gatherStale(bool moves_current);
   /// Their values (stale_f_) into f_ and f_pbest_, then the personal and global bests.
   void takeStale(bool moves_current);
+  /// What gatherStale() evaluates and takeStale() takes back, in the same order: particle i's
+  /// position unless its move was accepted on the present data, and its personal best where it is
+  /// not at the position.
+  bool positionStale(std::size_t i, bool moves_current) const { return !(moves_current && accepted_[i] > 0.5); }
+  bool bestApart(std::size_t i) const { return pointOf(pbest_, i) != pointOf(x_, i); }
   /// f at points[0, m) into out: in one call where F has batch().
   template <class F>
   void evaluate(const F& f, const ParameterVector* points, std::size_t m, double* out) {

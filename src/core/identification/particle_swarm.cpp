@@ -329,8 +329,8 @@ void ParticleSwarm::acceptMoves() {
 std::size_t ParticleSwarm::gatherStale(bool moves_current) {
   std::size_t m = 0;
   for (std::size_t i = 0; i < n_; ++i) {
-    if (!(moves_current && accepted_[i] > 0.5)) batch_points_[m++] = parametersOf(x_, i);
-    if (pointOf(pbest_, i) != pointOf(x_, i)) batch_points_[m++] = parametersOf(pbest_, i);
+    if (positionStale(i, moves_current)) batch_points_[m++] = parametersOf(x_, i);
+    if (bestApart(i)) batch_points_[m++] = parametersOf(pbest_, i);
   }
   return m;
 }
@@ -339,8 +339,8 @@ void ParticleSwarm::takeStale(bool moves_current) {
   f_gbest_ = std::numeric_limits<double>::infinity();
   std::size_t k = 0;
   for (std::size_t i = 0; i < n_; ++i) {
-    if (!(moves_current && accepted_[i] > 0.5)) f_[i] = stale_f_[k++];
-    f_pbest_[i] = pointOf(pbest_, i) != pointOf(x_, i) ? stale_f_[k++] : f_[i];
+    if (positionStale(i, moves_current)) f_[i] = stale_f_[k++];
+    f_pbest_[i] = bestApart(i) ? stale_f_[k++] : f_[i];
     if (f_[i] < f_pbest_[i]) {
       f_pbest_[i] = f_[i];
       for (int d = 0; d < kParameterCount; ++d) at(pbest_, d, i) = at(x_, d, i);
