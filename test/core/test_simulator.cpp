@@ -213,17 +213,9 @@ TEST(RealDrive, StationaryHoldRotatesTheAppliedVoltageByTheSpeed) {
   const auto& x = d.back();
   const double wT = x.sample.omega_e * s.drive.sample_period;
   const double S = std::sin(wT) / wT, C = (1 - std::cos(wT)) / wT;
-  // The plant's mean over 10 substeps (left points) against the exact mean of the rotation.
-  const double h = 1.0 / s.drive.integration_substeps;
-  double Sn = 0, Cn = 0;
-  for (int j = 0; j < s.drive.integration_substeps; ++j) {
-    Sn += h * std::cos(wT * j * h);
-    Cn += h * std::sin(wT * j * h);
-  }
-  EXPECT_NEAR(x.u_d_applied, Sn * x.sample.u_d + Cn * x.sample.u_q, 1e-9 * std::abs(x.sample.u_q));
-  EXPECT_NEAR(x.u_q_applied, Sn * x.sample.u_q - Cn * x.sample.u_d, 1e-9 * std::abs(x.sample.u_q));
-  EXPECT_NEAR(Sn, S, 0.01 * wT);  // the left-point mean approximates the exact one
-  EXPECT_NEAR(Cn, C, 0.1 * wT);
+  // The plant's mean over the period (the RK4 stages' quadrature) against the exact mean of the rotation.
+  EXPECT_NEAR(x.u_d_applied, S * x.sample.u_d + C * x.sample.u_q, 1e-7 * std::abs(x.sample.u_q));
+  EXPECT_NEAR(x.u_q_applied, S * x.sample.u_q - C * x.sample.u_d, 1e-7 * std::abs(x.sample.u_q));
 }
 
 // One period of computation delay: the voltage computed at t_k acts on [t_k+1, t_k+2). (It is

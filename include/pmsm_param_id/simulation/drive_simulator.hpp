@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <cmath>
 #include <random>
+#include <vector>
 
 #include "pmsm_param_id/model/motor_model.hpp"
 #include "pmsm_param_id/model/sample.hpp"
@@ -22,6 +23,8 @@ struct SimulatedSample {
   bool voltage_limited = false;
   double u_d_applied = 0.0;    ///< d-axis voltage the motor received, mean over the period [V]
   double u_q_applied = 0.0;    ///< [V]
+  double u_d_ideal = 0.0;      ///< the held vector's mean over the period in the rotor frame: what an inverter without error applies [V]
+  double u_q_ideal = 0.0;      ///< [V]
   double inverter_error_voltage = 0.0;  ///< pole-voltage error amplitude V_dc t_dead f_sw + drop [V]
   double winding_temperature = NAN;     ///< true winding temperature [degC] (thermal model only)
   double magnet_temperature = NAN;      ///< true magnet temperature [degC] (thermal model only)
@@ -61,6 +64,7 @@ class DriveSimulator {
   double winding_temperature_ = 0.0, magnet_temperature_ = 0.0;  // thermal model state [degC]
   double encoder_previous_ = 0.0;  // last measured mechanical angle [rad]
   double speed_estimate_ = 0.0;    // filtered mechanical speed from the encoder [rad/s]
+  std::vector<double> encoder_history_;  // count angles of the speed window's periods [rad]
   // computation delay: the reference computed at the previous sample and its conversion angle
   double pending_u_d_ = 0.0, pending_u_q_ = 0.0, pending_angle_ = 0.0;
   double d_integral_ = 0.0;      // [V]

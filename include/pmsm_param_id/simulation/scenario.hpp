@@ -2,6 +2,8 @@
 #pragma once
 #include <array>
 #include <cstdint>
+#include <cmath>
+#include <limits>
 #include <memory>
 #include <string>
 
@@ -33,12 +35,28 @@ struct InverterSettings {
   int computation_delay = 0;           ///< periods between computing a voltage and applying it: 0 or 1
   double dc_ripple = 0.0;              ///< relative amplitude of a sinusoidal DC-bus ripple [-]
   double dc_ripple_frequency = 300.0;  ///< [Hz]
+  /// false: the average model (each pole voltage loses the error voltage times tanh of its current);
+  /// true: switching level. Centre-aligned carrier comparison at one PWM period per sample (the
+  /// carrier's valley at the sample instants, where the currents are sampled), min-max zero sequence
+  /// (SVPWM), dead time at every commutation with the leg voltage set by the sign of the actual phase
+  /// current during it, device drops against the current (doc/simulator.md).
+  bool switching = false;
+  /// The reference computed at t_k is turned into the stator frame at the predicted angle
+  /// theta_k + angle_prediction omega_e T_s [periods]; NaN = computation_delay (0 or 1).
+  double angle_prediction = std::numeric_limits<double>::quiet_NaN();
+  /// false: the log holds the reference computed at t_k; true: the d-q voltage applied over
+  /// [t_k, t_k+1) (the acting vector in the rotor frame at the measured mid-period angle).
+  bool log_applied_voltage = false;
+  double anglePrediction() const { return std::isfinite(angle_prediction) ? angle_prediction : computation_delay; }
   /// Pole-voltage error amplitude [V] at bus voltage v_dc.
   double errorVoltage(double v_dc, double sample_period) const {
     const double f = switching_frequency > 0 ? switching_frequency : 1.0 / sample_period;
     return dead_time > 0 || device_drop > 0 ? v_dc * dead_time * f + device_drop : 0.0;
   }
-  bool active() const { return dead_time > 0 || device_drop > 0 || stationary_hold || computation_delay > 0 || dc_ripple > 0; }
+  bool active() const {
+    return dead_time > 0 || device_drop > 0 || stationary_hold || computation_delay > 0 || dc_ripple > 0 || switching ||
+           anglePrediction() != computation_delay || log_applied_voltage;
+  }
 };
 
 /// First-order thermal models of winding and magnets (off by default): R_s and psi_f follow them.
@@ -68,6 +86,9 @@ struct SensorSettings {
   std::array<double, 3> phase_gain{1, 1, 1};    ///< per-phase gain [-] (phase_currents only)
   int encoder_lines = 0;             ///< 0: exact angle and speed; else an incremental encoder (4x counts)
   double speed_filter_hz = 1000.0;   ///< speed = filtered position difference, first-order cut-off [Hz]
+  /// > 0: the speed is the count difference over this many periods instead (quantised to one count
+  /// per window, lagging by half the window); 0: the filter above.
+  int speed_window_periods = 0;
 };
 
 struct Scenario {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 namespace pmsm_param_id {
 
@@ -86,8 +87,17 @@ SimulatedSample DriveSimulator::step() {
     const double counts_per_rad = 4.0 * s.sensors.encoder_lines / (2.0 * M_PI);
     const double theta_m = std::floor(x_.theta_e / p * counts_per_rad) / counts_per_rad + 0.5 / counts_per_rad;
     if (k_ == 0) encoder_previous_ = theta_m;
-    const double alpha = 1.0 - std::exp(-2.0 * M_PI * s.sensors.speed_filter_hz * Ts);
-    speed_estimate_ += alpha * ((theta_m - encoder_previous_) / Ts - speed_estimate_);
+    const int window = s.sensors.speed_window_periods;
+    if (window > 0) {  // count difference over the window (the first samples: over what there is)
+      if (encoder_history_.empty()) encoder_history_.assign(static_cast<std::size_t>(window), theta_m);
+      const std::size_t slot = static_cast<std::size_t>(k_ % static_cast<std::uint64_t>(window));
+      const double periods = static_cast<double>(std::min<std::uint64_t>(k_, static_cast<std::uint64_t>(window)));
+      speed_estimate_ = periods > 0 ? (theta_m - encoder_history_[slot]) / (periods * Ts) : 0.0;
+      encoder_history_[slot] = theta_m;
+    } else {
+      const double alpha = 1.0 - std::exp(-2.0 * M_PI * s.sensors.speed_filter_hz * Ts);
+      speed_estimate_ += alpha * ((theta_m - encoder_previous_) / Ts - speed_estimate_);
+    }
     encoder_previous_ = theta_m;
     theta_e_measured = p * theta_m;
     omega_m_measured = speed_estimate_;
@@ -152,14 +162,15 @@ SimulatedSample DriveSimulator::step() {
   out.load_torque = s.load_torque(t);
 
   // Actuation. The reference computed now acts from now on, or one period later; it is turned into
-  // the stator frame with the angle at the start of the period it acts in (measured angle plus
-  // the speed times the delay), and held there (stationary hold) or in the rotor frame.
+  // the stator frame at the predicted angle theta_k + k_p omega_e T_s (measured angle and speed) and
+  // held there (stationary hold, and always by the PWM) or in the rotor frame.
   const InverterSettings& inv = s.inverter;
+  const double k_p = inv.anglePrediction();
   Vec2 reference{u_d, u_q};
-  double conversion_angle = theta_e_measured;
+  double conversion_angle = theta_e_measured + k_p * omega_e * Ts;
   if (inv.computation_delay > 0) {
     const Vec2 computed = reference;
-    const double computed_angle = theta_e_measured + omega_e * Ts;  // where the rotor will be
+    const double computed_angle = conversion_angle;
     reference = k_ == 0 ? Vec2{0.0, 0.0} : Vec2{pending_u_d_, pending_u_q_};  // nothing before the first
     conversion_angle = k_ == 0 ? theta_e_measured : pending_angle_;
     pending_u_d_ = computed.x;
@@ -167,11 +178,68 @@ SimulatedSample DriveSimulator::step() {
     pending_angle_ = computed_angle;
   }
   const Vec2 stator = rotate(reference, conversion_angle);
+  if (inv.log_applied_voltage) {
+    // The log holds the vector acting over [t_k, t_k+1) in the rotor frame at the drive's own
+    // mid-period angle (the rotor-frame hold: at the period's start).
+    const Vec2 logged = rotate(stator, -(theta_e_measured + (inv.stationary_hold ? 0.5 * omega_e * Ts : 0.0)));
+    out.sample.u_d = logged.x;
+    out.sample.u_q = logged.y;
+  }
   const double v_err = inv.errorVoltage(v_dc, Ts);
   const double i0 = inv.zero_crossing_current;
   const double theta_start = x_.theta_e;
+
+  // Switching level: each leg's duty from the stator vector with the min-max zero sequence (SVPWM),
+  // centre-aligned (high around mid-period, the carrier's valley at the period's ends); the switch
+  // that turns on waits the dead time, during which the leg's voltage follows the sign of the
+  // actual phase current. A dead time reaching past the period's end is cut there.
+  enum LegState : int { kLow = 0, kHigh = 1, kDead = 2 };
+  struct Leg {
+    bool switching = false, high = false;
+    double rise = 0, rise_end = 0, fall = 0, fall_end = 0;  // [s] from the period's start
+    LegState at(double tau) const {
+      if (!switching) return high ? kHigh : kLow;
+      if (tau < rise) return kLow;
+      if (tau < fall) return tau < rise_end ? kDead : kHigh;
+      return tau < fall_end ? kDead : kLow;
+    }
+  };
+  std::array<Leg, 3> legs{};
+  std::vector<double> breaks{0.0, Ts};
+  if (inv.switching) {
+    const std::array<double, 3> v = inverseClarke(stator);
+    const double zero_sequence = -0.5 * (std::max({v[0], v[1], v[2]}) + std::min({v[0], v[1], v[2]}));
+    for (std::size_t k = 0; k < 3; ++k) {
+      const double duty = std::clamp(0.5 + (v[k] + zero_sequence) / v_dc, 0.0, 1.0);
+      Leg& leg = legs[k];
+      leg.high = duty >= 1.0;
+      leg.switching = duty > 0.0 && duty < 1.0;
+      if (!leg.switching) continue;
+      leg.rise = 0.5 * (1.0 - duty) * Ts;
+      leg.fall = 0.5 * (1.0 + duty) * Ts;
+      leg.rise_end = leg.rise + inv.dead_time;
+      leg.fall_end = std::min(Ts, leg.fall + inv.dead_time);
+      for (double b : {leg.rise, leg.rise_end, leg.fall, leg.fall_end})
+        if (b > 0.0 && b < Ts) breaks.push_back(b);
+    }
+    std::sort(breaks.begin(), breaks.end());
+    breaks.erase(std::unique(breaks.begin(), breaks.end()), breaks.end());
+  }
+  std::array<LegState, 3> legs_now{kLow, kLow, kLow};  // the legs' states in the segment being integrated
+  const double v_on = inv.device_drop;
   // Applied d-q voltage for a plant state inside the period.
   const auto applied = [&](const PlantState& x) -> Vec2 {
+    if (inv.switching) {
+      const std::array<double, 3> i = phaseFromDq(x.i_d, x.i_q, x.theta_e);
+      std::array<double, 3> pole{};
+      for (std::size_t k = 0; k < 3; ++k) {
+        const double sgn = i[k] > 0 ? 1.0 : (i[k] < 0 ? -1.0 : 0.0);
+        LegState st = legs_now[k];
+        if (st == kDead) st = sgn > 0 ? kLow : kHigh;  // the freewheeling diode of the current's sign
+        pole[k] = (st == kHigh ? v_dc : 0.0) - v_on * sgn;
+      }
+      return rotate(clarke(pole[0], pole[1], pole[2]), -x.theta_e);  // the zero sequence drops out
+    }
     Vec2 u = inv.stationary_hold ? rotate(stator, -x.theta_e) : rotate(stator, -theta_start);
     if (v_err > 0) {  // dead time and device drops: each pole voltage loses v_err against its current
       const std::array<double, 3> abc = phaseFromDq(x.i_d, x.i_q, x.theta_e);
@@ -181,11 +249,45 @@ SimulatedSample DriveSimulator::step() {
     }
     return u;
   };
+  // The period's integration steps: integration_substeps equal ones, and with the switching model
+  // each segment between switching instants in steps no longer than those.
+  const int n = s.drive.integration_substeps;
+  const double h_max = Ts / n;
+  struct Step {
+    double h;
+    std::array<LegState, 3> legs;
+  };
+  std::vector<Step> steps;
+  for (std::size_t b = 0; b + 1 < breaks.size(); ++b) {
+    const double length = breaks[b + 1] - breaks[b];
+    if (!(length > 0)) continue;
+    const int m = std::max(1, static_cast<int>(std::ceil(length / h_max - 1e-9)));
+    const double mid = 0.5 * (breaks[b] + breaks[b + 1]);
+    const std::array<LegState, 3> st{legs[0].at(mid), legs[1].at(mid), legs[2].at(mid)};
+    for (int j = 0; j < m; ++j) steps.push_back({length / m, st});
+  }
 
   // Plant over [t, t + Ts]: classical RK4 with the applied voltage evaluated at every stage.
-  const int n = s.drive.integration_substeps;
-  const double h = Ts / n;
+  // The period's mean applied voltage and the held vector's (what an inverter without error applies),
+  // by the RK4 weights of the stage values: the same quadrature as the plant's.
   double applied_d = 0.0, applied_q = 0.0;
+  Vec2 ideal{0.0, 0.0};
+  Vec2 stage_u[4], stage_ideal[4];
+  int stage = 0;
+  const auto voltageAt = [&](const PlantState& x) {
+    const Vec2 u = applied(x);
+    stage_u[stage] = u;
+    stage_ideal[stage] = inv.stationary_hold ? rotate(stator, -x.theta_e) : rotate(stator, -theta_start);
+    stage = (stage + 1) & 3;
+    return u;
+  };
+  const auto accumulate = [&](double h) {
+    const double w = h / (6.0 * Ts);
+    applied_d += w * (stage_u[0].x + 2 * stage_u[1].x + 2 * stage_u[2].x + stage_u[3].x);
+    applied_q += w * (stage_u[0].y + 2 * stage_u[1].y + 2 * stage_u[2].y + stage_u[3].y);
+    ideal.x += w * (stage_ideal[0].x + 2 * stage_ideal[1].x + 2 * stage_ideal[2].x + stage_ideal[3].x);
+    ideal.y += w * (stage_ideal[0].y + 2 * stage_ideal[1].y + 2 * stage_ideal[2].y + stage_ideal[3].y);
+  };
   if (s.saturation.enabled) {
     // Saturating magnetics: the flux linkages are the state (the currents follow from them at each
     // stage, model/magnetics.hpp). A period starts from the flux of the present currents, so a step
@@ -196,7 +298,7 @@ SimulatedSample DriveSimulator::step() {
     double i_d_guess = x_.i_d, i_q_guess = x_.i_q;
     const auto derivative = [&](const State& y) {
       currentsFromFlux(plant, s.saturation, y.psi_d, y.psi_q, i_d_guess, i_q_guess);
-      const Vec2 u = applied(PlantState{i_d_guess, i_q_guess, y.omega_m, y.theta_e});
+      const Vec2 u = voltageAt(PlantState{i_d_guess, i_q_guess, y.omega_m, y.theta_e});
       FluxDerivative d = saturatedPlantDerivative(plant, y.psi_d, y.psi_q, i_d_guess, i_q_guess, y.omega_m, u.x, u.y,
                                                   out.load_torque);
       if (s.drive.torque_control) d.domega_m = 0.0;  // held by the load machine
@@ -207,14 +309,14 @@ SimulatedSample DriveSimulator::step() {
     };
     const MagneticState start = magneticState(plant, s.saturation, x_.i_d, x_.i_q);
     State y{start.psi_d, start.psi_q, x_.omega_m, x_.theta_e};
-    for (int j = 0; j < n; ++j) {
-      const Vec2 u0 = applied(x_);
-      applied_d += u0.x / n;
-      applied_q += u0.y / n;
+    for (const Step& st : steps) {
+      legs_now = st.legs;
+      const double h = st.h;
       const FluxDerivative k1 = derivative(y);
       const FluxDerivative k2 = derivative(add(y, k1, h / 2));
       const FluxDerivative k3 = derivative(add(y, k2, h / 2));
       const FluxDerivative k4 = derivative(add(y, k3, h));
+      accumulate(h);
       y.psi_d += h / 6 * (k1.dpsi_d + 2 * k2.dpsi_d + 2 * k3.dpsi_d + k4.dpsi_d);
       y.psi_q += h / 6 * (k1.dpsi_q + 2 * k2.dpsi_q + 2 * k3.dpsi_q + k4.dpsi_q);
       y.omega_m += h / 6 * (k1.domega_m + 2 * k2.domega_m + 2 * k3.domega_m + k4.domega_m);
@@ -225,7 +327,7 @@ SimulatedSample DriveSimulator::step() {
     }
   } else {
     const auto derivative = [&](const PlantState& x) {
-      const Vec2 u = applied(x);
+      const Vec2 u = voltageAt(x);
       PlantDerivative d = plantDerivative(plant, x, u.x, u.y, out.load_torque);
       if (s.drive.torque_control) d.domega_m = 0.0;  // held by the load machine
       return d;
@@ -233,14 +335,14 @@ SimulatedSample DriveSimulator::step() {
     const auto add = [](const PlantState& a, const PlantDerivative& d, double k) {
       return PlantState{a.i_d + k * d.di_d, a.i_q + k * d.di_q, a.omega_m + k * d.domega_m, a.theta_e + k * d.dtheta_e};
     };
-    for (int j = 0; j < n; ++j) {
+    for (const Step& st : steps) {
+      legs_now = st.legs;
+      const double h = st.h;
       const PlantDerivative k1 = derivative(x_);
       const PlantDerivative k2 = derivative(add(x_, k1, h / 2));
       const PlantDerivative k3 = derivative(add(x_, k2, h / 2));
       const PlantDerivative k4 = derivative(add(x_, k3, h));
-      const Vec2 u0 = applied(x_);
-      applied_d += u0.x / n;
-      applied_q += u0.y / n;
+      accumulate(h);
       x_.i_d += h / 6 * (k1.di_d + 2 * k2.di_d + 2 * k3.di_d + k4.di_d);
       x_.i_q += h / 6 * (k1.di_q + 2 * k2.di_q + 2 * k3.di_q + k4.di_q);
       x_.omega_m += h / 6 * (k1.domega_m + 2 * k2.domega_m + 2 * k3.domega_m + k4.domega_m);
@@ -249,7 +351,9 @@ SimulatedSample DriveSimulator::step() {
   }
   out.u_d_applied = applied_d;
   out.u_q_applied = applied_q;
-  out.inverter_error_voltage = v_err;
+  out.u_d_ideal = ideal.x;
+  out.u_q_ideal = ideal.y;
+  out.inverter_error_voltage = inv.switching ? v_dc * inv.dead_time / Ts + v_on : v_err;
   const ThermalModelSettings& th = s.thermal;
   if (th.enabled) {  // explicit Euler over the period: thermal time constants are seconds to minutes
     out.winding_temperature = winding_temperature_;

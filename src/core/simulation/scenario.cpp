@@ -54,6 +54,23 @@ Scenario loadScenario(const std::string& path) {
   inv.dc_ripple = y.number("inverter.dc_ripple", 0.0);
   if (inv.dc_ripple < 0 || inv.dc_ripple >= 0.5) y.fail("inverter.dc_ripple", "must be in [0, 0.5)");
   inv.dc_ripple_frequency = y.positive("inverter.dc_ripple_frequency", inv.dc_ripple_frequency);
+  const std::string model = y.oneOf("inverter.model", "average", {"average", "switching"});
+  inv.switching = model == "switching";
+  if (inv.switching) {
+    if (y.has("inverter.switching_frequency") && std::abs(inv.switching_frequency * s.drive.sample_period - 1.0) > 1e-9)
+      y.fail("inverter.switching_frequency", "the switching model runs one PWM period per sample: leave it out or set 1 / sample_period");
+    if (y.has("inverter.zero_crossing_current"))
+      y.fail("inverter.zero_crossing_current", "belongs to the average model (the switching model follows the actual current)");
+    if (y.has("inverter.voltage_hold") && !inv.stationary_hold)
+      y.fail("inverter.voltage_hold", "a PWM inverter holds the vector in the stator frame: stationary (or leave it out)");
+    inv.stationary_hold = true;
+  }
+  if (y.has("inverter.angle_prediction")) {
+    inv.angle_prediction = y.number("inverter.angle_prediction");
+    if (!(std::abs(inv.angle_prediction) <= 4.0)) y.fail("inverter.angle_prediction", "must be in [-4, 4] periods");
+  }
+  const std::string logged = y.oneOf("inverter.logged_voltage", "reference", {"reference", "applied"});
+  inv.log_applied_voltage = logged == "applied";
   const std::string frame = y.oneOf("sensors.frame", "dq", {"dq", "phase"});
   s.sensors.phase_currents = frame == "phase";
   for (const char* key : {"sensors.phase_offset", "sensors.phase_gain"}) {
@@ -65,6 +82,11 @@ Scenario loadScenario(const std::string& path) {
   }
   s.sensors.encoder_lines = static_cast<int>(y.integer("sensors.encoder_lines", 0, 0, 1 << 24));
   s.sensors.speed_filter_hz = y.positive("sensors.speed_filter_hz", s.sensors.speed_filter_hz);
+  s.sensors.speed_window_periods = static_cast<int>(y.integer("sensors.speed_window_periods", 0, 0, 100000));
+  if (s.sensors.speed_window_periods > 0 && s.sensors.encoder_lines == 0)
+    y.fail("sensors.speed_window_periods", "needs an encoder (sensors.encoder_lines)");
+  if (s.sensors.speed_window_periods > 0 && y.has("sensors.speed_filter_hz"))
+    y.fail("sensors.speed_filter_hz", "give either a speed filter or a count-difference window, not both");
   if (y.has("thermal")) {
     ThermalModelSettings& th = s.thermal;
     th.enabled = true;
