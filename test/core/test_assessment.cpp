@@ -517,8 +517,13 @@ TEST(OnlineIdentifier, EstimateIsSafeBeforeTheMethodStarts) {
 // the delay, the stationary hold and the inverter model).
 
 namespace {
+// real_drive.yaml with the timing of the realistic scenarios declared (their angle prediction is the
+// delay's own, k_p = 1): these tests look at the inverter and sensor models; the estimated voltage
+// angle has its own tests (VoltageAngle.*).
 IdentifierConfig realDriveConfig() {
-  return loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/real_drive.yaml"));
+  IdentifierConfig c = loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/real_drive.yaml"));
+  c.window.estimate_voltage_angle = false;
+  return c;
 }
 // Every parameter reported identified lies within `factor` times its stated uncertainty.
 void expectIdentifiedWithinStated(const Estimate& e, const ParameterVector& truth, const std::string& label,
@@ -1134,4 +1139,79 @@ TEST(Thermal, TemperaturesFollowTheSimulatorsThermalModel) {
     EXPECT_NEAR(e.winding_temperature.value, data.back().winding_temperature, 3.0) << method << " " << e.reason[kRs];
     EXPECT_NEAR(e.magnet_temperature.value, data.back().magnet_temperature, 5.0) << method << " " << e.reason[kPsiF];
   }
+}
+
+// The drive's angle prediction, which no log records (doc/algorithm.md section 8). The paper's
+// motor behind the average inverter model with ideal sensors, the voltage computed at t_k acting
+// on [t_k+1, t_k+2), turned at theta_k + k_p omega_e T_s; the window holds the load step at 0.55 s.
+namespace {
+std::vector<SimulatedSample> predictedAngleRun(double k_p, double until = 0.575) {
+  Scenario s = idealSensors(test_helpers::scenario("wc1_realistic.yaml"));
+  s.sensors.phase_currents = false;
+  s.sensors.current_noise_sigma = 0.01;
+  s.sensors.adc_bits = 0;
+  s.inverter.angle_prediction = k_p;
+  s.duration = until;
+  return test_helpers::run(s);
+}
+IdentifierConfig angleEstimated() {
+  return loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/real_drive.yaml"));
+}
+}  // namespace
+
+TEST(VoltageAngle, TheDataFindEachAnglePrediction) {
+  for (double k_p : {0.0, 0.5, 1.0, 1.5}) {
+    const auto data = predictedAngleRun(k_p);
+    const Estimate e = identify(samplesOf(data), "wls", angleEstimated());
+    ASSERT_TRUE(e.fit.voltage_angle_modelled);
+    // real_drive.yaml's delay and hold carry k_p = 1 themselves: the data's angle is the rest.
+    EXPECT_NEAR(e.fit.voltage_angle, k_p - 1.0, 0.1) << "k_p = " << k_p << " +- " << e.fit.voltage_angle_std;
+    EXPECT_TRUE(e.fit.consistent) << "k_p = " << k_p << " " << e.fit.likely_cause;
+    EXPECT_TRUE(e.identifiable[kLq]) << "k_p = " << k_p << " " << e.reason[kLq];
+    expectIdentifiedWithinStated(e, data.back().truth, "k_p = " + std::to_string(k_p));
+  }
+}
+
+TEST(VoltageAngle, AtOneSteadyOperatingPointLqIsNotSeparableFromTheTiming) {
+  // The switching-level industrial drive (k_p = 1.5) at one operating point: with the angle free,
+  // L_q is not identified, and the reason names the timing and what would separate them.
+  const auto data = test_helpers::run(test_helpers::scenario("industrial_pwm_steady.yaml"));
+  for (const char* method : {"wls", "fbdapso"}) {
+    const Estimate e = identify(samplesOf(data), method, angleEstimated());
+    EXPECT_FALSE(e.identifiable[kLq]) << method;
+    EXPECT_NE(e.reason[kLq].find("cannot be told from the angle at which the inverter applies the voltage"), std::string::npos)
+        << method << ": " << e.reason[kLq];
+    EXPECT_NE(e.reason[kLq].find("a load step or a speed change"), std::string::npos) << e.reason[kLq];
+    expectIdentifiedWithinStated(e, data.back().truth, method);
+  }
+}
+
+TEST(VoltageAngle, AContradictedDeclarationIsAPoorFitAndARightOneIsIdentified) {
+  const auto data = predictedAngleRun(1.5);
+  IdentifierConfig declared_own = angleEstimated();  // the delay's own k_p = 1, not estimated
+  declared_own.window.estimate_voltage_angle = false;
+  const Estimate wrong = identify(samplesOf(data), "wls", declared_own);
+  EXPECT_FALSE(wrong.fit.consistent);
+  EXPECT_NE(wrong.fit.likely_cause.find("against the declared timing"), std::string::npos)
+      << wrong.fit.likely_cause << " d " << wrong.fit.fit_ratio_d << " q " << wrong.fit.fit_ratio_q;
+  for (int p = 0; p < kParameterCount; ++p) EXPECT_FALSE(wrong.identifiable[p]) << parameterNames()[p];
+  IdentifierConfig declared_right = declared_own;  // time.angle_prediction: 1.5
+  declared_right.window.declared_voltage_angle = 0.5;
+  const Estimate right = identify(samplesOf(data), "wls", declared_right);
+  EXPECT_TRUE(right.fit.consistent) << right.fit.likely_cause;
+  EXPECT_TRUE(right.identifiable[kLq]) << right.reason[kLq];
+  expectIdentifiedWithinStated(right, data.back().truth, "declared 1.5");
+}
+
+TEST(VoltageAngle, TheConfigKeysReadAndCheck) {
+  const std::string ok = test_helpers::writeTemp("angle_ok.yaml", "time: {voltage_delay_samples: 1, voltage_hold: stationary, "
+                                                                  "angle_prediction: 1.5}\n");
+  EXPECT_DOUBLE_EQ(loadIdentifierConfig(ok).window.declared_voltage_angle, 0.5);
+  const std::string dq = test_helpers::writeTemp("angle_dq.yaml", "time: {voltage_delay_samples: 1, angle_prediction: 1.5}\n");
+  EXPECT_DOUBLE_EQ(loadIdentifierConfig(dq).window.declared_voltage_angle, 0.0);  // the rotor-frame hold's own is 1.5
+  const std::string bad = test_helpers::writeTemp("angle_bad.yaml", "time: {voltage_angle: maybe}\n");
+  EXPECT_THROW(loadIdentifierConfig(bad), ConfigError);
+  const std::string cross = test_helpers::writeTemp("angle_cross.yaml",
+                                                    "time: {voltage_angle: estimate}\nmagnetics: {cross_saturation: true}\n");
+  EXPECT_THROW(loadIdentifierConfig(cross), ConfigError);
 }

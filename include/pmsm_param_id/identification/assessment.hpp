@@ -67,6 +67,15 @@ struct FitCheck {
   bool cross_saturation_modelled = false;  ///< the fit estimated L_qq and L_dq (magnetics.cross_saturation)
   double L_qq = NAN, L_dq = NAN;           ///< incremental q and cross-saturation inductances [H]
   double L_qq_std = NAN, L_dq_std = NAN;   ///< their standard deviations [H] (inf: undetermined)
+  /// The fit estimated the voltage angle a (the acting vector turned by a omega_e T_s against the
+  /// declared timing; WindowSettings::estimate_voltage_angle).
+  bool voltage_angle_modelled = false;
+  double voltage_angle = NAN;       ///< a [periods of omega_e T_s]
+  double voltage_angle_std = NAN;   ///< its standard deviation [-] (inf: undetermined)
+  /// Per parameter: the relative std with a held at its estimate (what the data would give if the
+  /// drive's timing were known); where this is within the limit and relative_std is not, the
+  /// parameter cannot be told from the drive's timing in this window.
+  ParameterVector relative_std_known_timing{};
 };
 
 /// Exact fit of the window starting from `start` (positive inductances), and its check.

@@ -14,7 +14,8 @@
 //   inverter:    a voltage V along the current vector (dead time, device drops), and with the
 //                zero-crossing shape as a mix of two widths, and with the dead-time part following
 //                a logged DC-bus voltage;
-//   cross saturation: the incremental L_qq and the cross inductance L_dq of a saturating machine.
+//   cross saturation: the incremental L_qq and the cross inductance L_dq of a saturating machine;
+//   voltage angle: the acting vector turned by a omega_e T_s (the drive's angle prediction).
 #pragma once
 #include <Eigen/Core>
 #include <string>
@@ -50,6 +51,9 @@ struct LinearBlockModel {
   static LinearBlockModel crossSaturation(double i_bar);
   /// The same with L_d free in the speed term (the unit check on a saturating machine).
   static LinearBlockModel crossSaturationSpeedScale(double i_bar);
+  /// Any model + {a}: the acting voltage turned by a omega_e T_s against the declared timing (an
+  /// unrecorded angle prediction, doc/algorithm.md section 8), appended after its own parameters.
+  static LinearBlockModel withVoltageAngle(const LinearBlockModel& model);
   /// Any model + {L_qq, L_dq} (appended after its own parameters).
   static LinearBlockModel withCrossSaturation(const LinearBlockModel& model, double i_bar);
 };

@@ -56,6 +56,14 @@ struct WindowSettings {
   /// The same for the phase sensors' gain mismatch (terms at 2 theta times the currents; needs
   /// sensor_offsets' machinery and the logged angle).
   bool sensor_gains = false;
+  /// Estimate the angle a omega_e T_s [rad] by which the acting voltage vector is turned against the
+  /// declared timing (an inverter's angle prediction the log does not record, doc/algorithm.md
+  /// section 8): u_acting = u + a omega_e T_s J u, to first order; the block entries
+  /// kIntegralAngleUqInD and kIntegralAngleUdInQ carry it.
+  bool estimate_voltage_angle = false;
+  /// A declared angle prediction beyond the delay's own [periods of omega_e T_s]: the acting vector is
+  /// turned by this times omega_e T_s (exactly) before the estimate above.
+  double declared_voltage_angle = 0.0;
 };
 
 /// The inverter error as the block model carries it: the amplitude V split over the shapes' entries.
@@ -98,6 +106,7 @@ enum BlockEntryD : int {
   kDeltaIqInD,           ///< i_q(t_k) - i_q(t_j) [A] (cross-saturation: L_dq di_q/dt in the d axis)
   kIntegralOmegaIdInD,   ///< int omega_e i_d dt [A] (cross-saturation: omega_e L_dq i_d in psi_q)
   kIntegralOmegaInD,     ///< int omega_e dt [rad] (cross-saturation: psi_q(0, i_q) linear in a moving i_q)
+  kIntegralAngleUqInD,   ///< int omega_e T_s u_q dt [V s]: the acting vector turned by a omega_e T_s adds -a times it
   kBlockSizeD
 };
 /// Entries of the q-axis block vector.
@@ -113,6 +122,7 @@ enum BlockEntryQ : int {
   kIntegralInverterBusQ,   ///< [s]
   kDeltaIdInQ,           ///< i_d(t_k) - i_d(t_j) [A] (cross-saturation: L_dq di_d/dt in the q axis)
   kIntegralOmegaIqInQ,   ///< int omega_e i_q dt [A] (cross-saturation: psi_d(0, i_q) linear in a moving i_q)
+  kIntegralAngleUdInQ,   ///< int omega_e T_s u_d dt [V s]: ... adds +a times it (T_s the nominal period)
   kBlockSizeQ
 };
 using BlockD = Eigen::Matrix<double, kBlockSizeD, 1>;
@@ -186,6 +196,7 @@ class BlockStatistics {
     // counts fixed at compile time so that the compiler unrolls them.
     // (The q form continues the d form's sum: the same order of additions as one loop over both.)
     const auto [Sd, Sq] = fitnessSums();
+    if (voltage_angle_ != 0.0) return fitnessWithVoltageAngle(p, Sd, Sq);
     static_assert(kIntegralInverterD == 4 && kIntegralInverterWideD == 6 && kIntegralInverterBusD == 7 &&
                       kIntegralInverterQ == 5 && kIntegralInverterWideQ == 7 && kIntegralInverterBusQ == 8,
                   "the fitness's weight arrays follow the block entries");
@@ -201,6 +212,8 @@ class BlockStatistics {
                               : upperForm<5>(Sq, wq, upperForm<4>(Sd, wd, 0.0));
     return std::max(0.0, 2.0 * f / stored_weight_);
   }
+  /// fitness() with a known voltage angle (setVoltageAngle): every entry's weight, the general form.
+  double fitnessWithVoltageAngle(const ParameterVector& p, const ProductD& Sd, const ProductQ& Sq) const;
   /// fitness() at n points in one call (the swarm evaluates every particle's move at once): the same
   /// values, each computed as fitness() computes it, without a call per point.
   void fitness(const ParameterVector* p, std::size_t n, double* out) const;
@@ -229,6 +242,10 @@ class BlockStatistics {
     inverter_bus_share_ = v != 0.0 ? bus_share : 0.0;
   }
   double inverterVoltage() const { return inverter_voltage_; }
+  /// The voltage angle coefficient a the fitness takes as known (acting vector turned by
+  /// a omega_e T_s; 0: none) [-]; set from the data's exact fit (WindowSettings::estimate_voltage_angle).
+  void setVoltageAngle(double a) { voltage_angle_ = a; }
+  double voltageAngle() const { return voltage_angle_; }
   double inverterWideShare() const { return inverter_wide_share_; }
   double inverterBusShare() const { return inverter_bus_share_; }
   InverterMix inverterMix() const { return InverterMix::of(inverter_voltage_, inverter_wide_share_, inverter_bus_share_); }
@@ -297,6 +314,7 @@ class BlockStatistics {
     double bus_ratio;                       // v_dc / bus_reference_ - 1 at the sample (0: not logged)
     double cos_theta, sin_theta, I_cos, I_sin;  // cos, sin of the logged angle (0 without it); their integrals (sensor offsets)
     double P, Q, I_P, I_Q, W_P, W_Q;            // sensor gains: P, Q of the sample and their integrals
+    double A_d, A_q;                        // int omega_e T_s u_q, int omega_e T_s u_d of the acting voltage (voltage angle)
     double shape_d, shape_q;                // inverter error shape s at the sample
     double theta_e;                         // electrical angle (NaN when not logged)
     std::array<double, 3> phase;            // phase currents a, b, c (when theta_e is known)
@@ -361,6 +379,7 @@ class BlockStatistics {
   double weight_ = 0.0, difference_weight_ = 0.0;
   std::uint64_t blocks_ = 0;
   double inverter_voltage_ = 0.0, inverter_wide_share_ = 0.0, inverter_bus_share_ = 0.0;
+  double voltage_angle_ = 0.0;
   double bus_reference_ = std::numeric_limits<double>::quiet_NaN();
   double hold_L_d_ = 0.0, hold_L_q_ = 0.0;
   ParameterVector observer_model_{};          // R_s, L_d, L_q, psi_f of the shape's observer (0: none yet)

@@ -107,14 +107,17 @@ std::string unitCause(const SpeedScale& m, double min_log_ratio,
 // The window with the reference voltages corrected by a known inverter voltage V, of which
 // V_wide builds up over twice the zero-crossing current and V_bus follows the logged bus voltage:
 // U <- U - (V - V_wide) int(s) - V_wide int(s_wide) - V_bus int((v_dc / v_ref - 1) s).
-WindowSums compensated(WindowSums w, double V, double V_wide, double V_bus) {
-  if (V == 0.0) return w;
+// And the acting voltage turned by a known angle a omega_e T_s: U_d - a A_d, U_q + a A_q.
+WindowSums compensated(WindowSums w, double V, double V_wide, double V_bus, double angle) {
+  if (V == 0.0 && angle == 0.0) return w;
   const InverterMix mix = InverterMix::of(V, V_wide, V_bus);
   ProductD Ad = ProductD::Identity();
+  Ad(kIntegralUd, kIntegralAngleUqInD) = -angle;
   Ad(kIntegralUd, kIntegralInverterD) = -mix.narrow;
   Ad(kIntegralUd, kIntegralInverterWideD) = -mix.wide;
   Ad(kIntegralUd, kIntegralInverterBusD) = -mix.bus;
   ProductQ Aq = ProductQ::Identity();
+  Aq(kIntegralUq, kIntegralAngleUdInQ) = angle;
   Aq(kIntegralUq, kIntegralInverterQ) = -mix.narrow;
   Aq(kIntegralUq, kIntegralInverterWideQ) = -mix.wide;
   Aq(kIntegralUq, kIntegralInverterBusQ) = -mix.bus;
@@ -173,6 +176,21 @@ std::string misspecification(const WindowSums& window, const AssessmentSettings&
                             : "the voltages act %.2g samples earlier than declared: lower time.voltage_delay_samples",
                       std::abs(d)));
   }
+  // The voltage acting at another angle than declared (the drive's angle prediction, which no log
+  // records): a omega_e T_s of turn. At one steady operating point it is indistinguishable from L_q
+  // (significance then fails); with load or speed changes in the window it shows.
+  if (!fit.voltage_angle_modelled && !cross) {
+    const Eigen::VectorXd s = startWith(0.0);
+    const BlockFit f = BlockLeastSquares::fit(window, LinearBlockModel::withVoltageAngle(LinearBlockModel::paper()), s, {},
+                                              a.variance_inflation);
+    const double angle = f.beta(4);
+    const bool significant = std::isfinite(angle) && std::abs(angle) > 0.2 && std::abs(angle) > kSignificance * f.standard_deviation(4);
+    consider(f, significant,
+             format("the voltage acts turned by %.2g omega_e T_s against the declared timing (the drive's angle "
+                    "prediction, which the log does not record): set time.voltage_angle: estimate, or declare "
+                    "time.angle_prediction",
+                    angle));
+  }
   // A saturating machine: the d-axis current steps drive the q axis through L_dq (reciprocity), and
   // R_s absorbs -omega_e L_dq. Relevant when L_dq is significant and its omega_e L_dq is more than
   // 1 % of R_s.
@@ -219,11 +237,15 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   estimate_cross = estimate_cross && !estimate_inverter;
   WindowSums window = stats.window();
   const bool with_bus = estimate_inverter && stats.busVoltageLogged();
-  const LinearBlockModel model = with_bus            ? LinearBlockModel::inverterWithShapeAndBus()
-                                 : estimate_inverter ? LinearBlockModel::inverterWithShape()
-                                 : estimate_cross  ? LinearBlockModel::crossSaturation(window.crossLinearisationCurrent())
-                                                   : LinearBlockModel::paper();
-  Eigen::VectorXd s(model.size());
+  const LinearBlockModel base_model = with_bus            ? LinearBlockModel::inverterWithShapeAndBus()
+                                      : estimate_inverter ? LinearBlockModel::inverterWithShape()
+                                      : estimate_cross  ? LinearBlockModel::crossSaturation(window.crossLinearisationCurrent())
+                                                        : LinearBlockModel::paper();
+  // The drive's voltage angle (an unrecorded angle prediction) as the model's last parameter.
+  const bool estimate_angle = stats.settings().estimate_voltage_angle && !estimate_cross;
+  const LinearBlockModel model = estimate_angle ? LinearBlockModel::withVoltageAngle(base_model) : base_model;
+  const int angle_index = model.size() - 1;
+  Eigen::VectorXd s = Eigen::VectorXd::Zero(model.size());  // the angle: linear in it, any start converges
   for (int p = 0; p < kParameterCount; ++p) s(p) = start[p];
   if (estimate_inverter) {
     s(4) = inverter_start;
@@ -261,6 +283,21 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     out.optimum[p] = f.beta(p);
     out.determined[p] = f.determined[p];
     out.relative_std[p] = f.standard_deviation(p) / std::abs(f.beta(p));
+  }
+  out.relative_std_known_timing = out.relative_std;
+  if (estimate_angle) {
+    out.voltage_angle_modelled = true;
+    out.voltage_angle = f.beta(angle_index);
+    out.voltage_angle_std = f.determined[static_cast<std::size_t>(angle_index)] ? f.standard_deviation(angle_index)
+                                                                                : std::numeric_limits<double>::infinity();
+    // The same window with the angle held at its estimate: where a parameter is determined then
+    // and not with the angle free, the window cannot tell that parameter from the drive's timing.
+    std::vector<bool> hold(static_cast<std::size_t>(model.size()), false);
+    hold[static_cast<std::size_t>(angle_index)] = true;
+    const BlockFit known = BlockLeastSquares::fit(window, model, f.beta, hold, a.variance_inflation);
+    if (known.ok)
+      for (int p = 0; p < kParameterCount; ++p)
+        out.relative_std_known_timing[p] = known.standard_deviation(p) / std::abs(known.beta(p));
   }
   out.noise_std_d = std::sqrt(f.current_noise_variance_d);
   out.noise_std_q = std::sqrt(f.current_noise_variance_q);
@@ -305,7 +342,8 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     const double V = out.inverter_modelled ? out.inverter_voltage : 0.0;
     const double V_wide = out.inverter_modelled ? out.inverter_wide_share : 0.0;
     const double V_bus = out.inverter_modelled ? out.inverter_bus_share : 0.0;
-    const WindowSums corrected = compensated(window, V, V_wide, V_bus);
+    const double angle = out.voltage_angle_modelled && std::isfinite(out.voltage_angle) ? out.voltage_angle : 0.0;
+    const WindowSums corrected = compensated(window, V, V_wide, V_bus, angle);
     // With the logged angle the block integrals take omega_e dt from it, so a wrong speed unit no
     // longer shows in the fit; the logged speed is compared with the angle's rate directly. Where
     // that verifies the unit, a speed-term ratio away from 1 is not a unit error and names nothing.
@@ -327,7 +365,7 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     std::string cause = misspecification(corrected, a, out, unit_known ? SpeedScale{} : short_scale);
     // The unit of the speed shows only where the window holds q-axis current steps; the fitness
     // window may have forgotten them (a start-up, a load step), the long window has not.
-    WindowSums long_window = compensated(stats.longWindow(), V, V_wide, V_bus);
+    WindowSums long_window = compensated(stats.longWindow(), V, V_wide, V_bus, angle);
     out.speed_unit_verified = short_scale.verified();
     out.speed_scale_short = short_scale.scale();
     // With a saturating machine modelled the long window's differenced blocks gave spurious unit
@@ -423,6 +461,12 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
       st = ParameterStatus::NotExcited;
       why = std::isfinite(statistical) ? format("the data determine it only to +-%.3g %% (need %.3g %%)", 100 * statistical, 100 * limit)
                                        : "the data do not determine it (no excitation in the window)";
+      const double known_timing = a.confidence_sigmas * fit.relative_std_known_timing[p];
+      if (fit.voltage_angle_modelled && known_timing < 0.5 * statistical)
+        why += format("; with the drive's voltage timing known +-%.3g %%", 100 * known_timing) +
+               ": at this operating point it cannot be told from the angle at which the inverter applies the "
+               "voltage (an unrecorded angle prediction, a omega_e T_s); a load step or a speed change in the "
+               "window separates them, or declare time.angle_prediction";
       continue;
     }
     if (!(a.min_relative_uncertainty + fit.sampling_floor <= limit)) {

@@ -11,10 +11,10 @@
 namespace pmsm_param_id {
 
 namespace {
-// At most 7 parameters: fixed-capacity matrices keep the solver off the heap.
-using MatN = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 7, 7>;
-using VecN = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 7, 1>;
-constexpr int kMaxParameters = 7;
+// At most 8 parameters: fixed-capacity matrices keep the solver off the heap.
+using MatN = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 8, 8>;
+using VecN = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 8, 1>;
+constexpr int kMaxParameters = 8;
 
 LinearBlockModel base(int extra) {
   LinearBlockModel m;
@@ -93,7 +93,7 @@ void residualMeanSquares(const WindowSums& stats, const Eigen::Matrix<double, kB
   diff_ms_q = std::max(0.0, quadraticForm(vq, stats.mean_difference_q));
 }
 
-/// f(std::integral_constant<int, N>{}) for the model's parameter count N, 4 to 7: the fit and the
+/// f(std::integral_constant<int, N>{}) for the model's parameter count N, 4 to 8: the fit and the
 /// residuals are instantiated per model size, so that every matrix has its size at compile time.
 template <class F>
 auto forModelSize(const LinearBlockModel& model, F&& f) {
@@ -102,8 +102,9 @@ auto forModelSize(const LinearBlockModel& model, F&& f) {
     case 5: return f(std::integral_constant<int, 5>{});
     case 6: return f(std::integral_constant<int, 6>{});
     case 7: return f(std::integral_constant<int, 7>{});
+    case 8: return f(std::integral_constant<int, 8>{});
   }
-  throw std::invalid_argument("a block model has 4 to 7 parameters, not " + std::to_string(model.size()));
+  throw std::invalid_argument("a block model has 4 to 8 parameters, not " + std::to_string(model.size()));
 }
 
 /// The exact fit of a model with N parameters (BlockLeastSquares::fit).
@@ -231,6 +232,17 @@ const LinearBlockModel& LinearBlockModel::inverterWithShapeAndBus() {
     return m;
   }();
   return model;
+}
+
+LinearBlockModel LinearBlockModel::withVoltageAngle(const LinearBlockModel& base_model) {
+  // + {a}: the acting vector is the logged one turned by a omega_e T_s (to first order
+  // u + a omega_e T_s J u), so int u_d = ... + a int omega T_s u_q, int u_q = ... - a int omega T_s u_d.
+  LinearBlockModel m = base_model;
+  m.name = base_model.name + "+voltage_angle";
+  const int a = addParameter(m, "voltage_angle");
+  m.G_d(kIntegralAngleUqInD, a) = 1.0;
+  m.G_q(kIntegralAngleUdInQ, a) = -1.0;
+  return m;
 }
 
 namespace {

@@ -258,7 +258,10 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
   // frame with the stationary hold, else constant; within a substep the held vector's bend of the
   // currents, as in the block integrals.
   const double w = p.omega_e;
-  const HoldBend bend = settings_.stationary_hold ? holdBend(h, w, p.applied_d, p.applied_q, L_d, L_q) : HoldBend{};
+  // The acting vector, turned by the drive's voltage angle where the data's fit estimates one.
+  Vec2 acting{p.applied_d, p.applied_q};
+  if (voltage_angle_ != 0.0) acting = rotate(acting, voltage_angle_ * angle_increment * nominal_period_ / dt);
+  const HoldBend bend = settings_.stationary_hold ? holdBend(h, w, acting.x, acting.y, L_d, L_q) : HoldBend{};
   const double missed_d = bend.missed_d, missed_q = bend.missed_q, bend_d = bend.mid_d, bend_q = bend.mid_q;
   const double d_start = observer_i_d_, q_start = observer_i_q_;
   double d0 = d_start, q0 = q_start;
@@ -268,12 +271,12 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
   out.valid = true;
   double path_d = 0.0, path_q = 0.0;  // the currents' integrals along the path [A s]
   for (int j = 0; j < n; ++j) {
-    double dU_d = h * p.applied_d, dU_q = h * p.applied_q;
+    double dU_d = h * acting.x, dU_q = h * acting.y;
     if (settings_.stationary_hold) {
       const HeldVectorIntegral a = heldVectorIntegral(w, j * h), b = heldVectorIntegral(w, (j + 1) * h);
       const double dS = b.S - a.S, dC = b.C - a.C;
-      dU_d = dS * p.applied_d + dC * p.applied_q;
-      dU_q = dS * p.applied_q - dC * p.applied_d;
+      dU_d = dS * acting.x + dC * acting.y;
+      dU_q = dS * acting.y - dC * acting.x;
     }
     const double cm = cos0 * crh - sin0 * srh, sm = sin0 * crh + cos0 * srh;
     const double c1 = cos0 * cr - sin0 * sr, s1 = sin0 * cr + cos0 * sr;
@@ -407,6 +410,11 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
       c.applied_d = applied.x;
       c.applied_q = applied.y;
     }
+    if (settings_.declared_voltage_angle != 0.0) {  // a declared angle prediction beyond the delay's own
+      const Vec2 turned = rotate({c.applied_d, c.applied_q}, settings_.declared_voltage_angle * s.omega_e * nominal_period_);
+      c.applied_d = turned.x;
+      c.applied_q = turned.y;
+    }
     c.applied_prev_d = p.applied_d;
     c.applied_prev_q = p.applied_q;
     const double h = 0.5 * dt;
@@ -481,6 +489,11 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
       c.W_P = p.W_P + 0.5 * period_angle * (p.P + c.P);
       c.W_Q = p.W_Q + 0.5 * period_angle * (p.Q + c.Q);
     }
+    {  // the period's turn omega_e dt times T_s and the acting voltage (estimated, or the declaration's check)
+      const double turn = (c.Om - p.Om) * nominal_period_;
+      c.A_d = p.A_d + turn * p.applied_q;
+      c.A_q = p.A_q + turn * p.applied_d;
+    }
     c.Ustep_d = p.Ustep_d + dt * (p.applied_d - p.applied_prev_d);
     c.Ustep_q = p.Ustep_q + dt * (p.applied_q - p.applied_prev_q);
     double inv_d = 0.0, inv_q = 0.0;
@@ -526,9 +539,9 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
   BlockD zd;
   BlockQ zq;
   zd << c.i_d - a.i_d, c.I_d - a.I_d, c.OmIq - a.OmIq, c.U_d - a.U_d, c.Inv_d - a.Inv_d, c.Ustep_d - a.Ustep_d,
-      c.Wide_d - a.Wide_d, c.Bus_d - a.Bus_d, c.i_q - a.i_q, c.OmId - a.OmId, c.Om - a.Om;
+      c.Wide_d - a.Wide_d, c.Bus_d - a.Bus_d, c.i_q - a.i_q, c.OmId - a.OmId, c.Om - a.Om, c.A_d - a.A_d;
   zq << c.i_q - a.i_q, c.I_q - a.I_q, c.OmId - a.OmId, c.U_q - a.U_q, c.Om - a.Om, c.Inv_q - a.Inv_q,
-      c.Ustep_q - a.Ustep_q, c.Wide_q - a.Wide_q, c.Bus_q - a.Bus_q, c.i_d - a.i_d, c.OmIq - a.OmIq;
+      c.Ustep_q - a.Ustep_q, c.Wide_q - a.Wide_q, c.Bus_q - a.Bus_q, c.i_d - a.i_d, c.OmIq - a.OmIq, c.A_q - a.A_q;
   // Forgetting: every stored sum is implicitly multiplied by lambda; new terms enter with scale_.
   scale_ /= lambda_;
   rankOneUpper(S_d_, zd, scale_);
@@ -606,6 +619,7 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
       e.Wide_d -= base.Wide_d; e.Wide_q -= base.Wide_q; e.Bus_d -= base.Bus_d; e.Bus_q -= base.Bus_q;
       e.I_cos -= base.I_cos; e.I_sin -= base.I_sin;
       e.I_P -= base.I_P; e.I_Q -= base.I_Q; e.W_P -= base.W_P; e.W_Q -= base.W_Q;
+      e.A_d -= base.A_d; e.A_q -= base.A_q;
     }
   }
   return true;
@@ -739,6 +753,33 @@ double BlockStatistics::crossLinearisationCurrent() const {
 [[gnu::flatten]] void BlockStatistics::fitnessWithCrossSaturation(const ParameterVector* p, std::size_t n,
                                                                    double* out) const {
   for (std::size_t i = 0; i < n; ++i) out[i] = fitnessWithCrossSaturation(p[i]);
+}
+
+double BlockStatistics::fitnessWithVoltageAngle(const ParameterVector& p, const ProductD& Sd, const ProductQ& Sq) const {
+  // The acting voltage is the logged one turned by a omega_e T_s: int u_d - a A_d, int u_q + a A_q.
+  const double inv_Ld = 1.0 / p[kLd], inv_Lq = 1.0 / p[kLq];
+  const InverterMix mix = inverterMix();
+  std::array<double, kBlockSizeD> wd{};
+  std::array<double, kBlockSizeQ> wq{};
+  wd[kDeltaId] = 1.0;
+  wd[kIntegralId] = p[kRs] * inv_Ld;
+  wd[kIntegralOmegaIq] = -p[kLq] * inv_Ld;
+  wd[kIntegralUd] = -inv_Ld;
+  wd[kIntegralInverterD] = mix.narrow * inv_Ld;
+  wd[kIntegralInverterWideD] = mix.wide * inv_Ld;
+  wd[kIntegralInverterBusD] = mix.bus * inv_Ld;
+  wd[kIntegralAngleUqInD] = voltage_angle_ * inv_Ld;
+  wq[kDeltaIq] = 1.0;
+  wq[kIntegralIq] = p[kRs] * inv_Lq;
+  wq[kIntegralOmegaId] = p[kLd] * inv_Lq;
+  wq[kIntegralUq] = -inv_Lq;
+  wq[kIntegralOmega] = p[kPsiF] * inv_Lq;
+  wq[kIntegralInverterQ] = mix.narrow * inv_Lq;
+  wq[kIntegralInverterWideQ] = mix.wide * inv_Lq;
+  wq[kIntegralInverterBusQ] = mix.bus * inv_Lq;
+  wq[kIntegralAngleUdInQ] = -voltage_angle_ * inv_Lq;
+  const double f = upperForm<kBlockSizeQ>(Sq, wq.data(), upperForm<kBlockSizeD>(Sd, wd.data(), 0.0));
+  return std::max(0.0, 2.0 * f / stored_weight_);
 }
 
 double BlockStatistics::fitnessWithCrossSaturation(const ParameterVector& p) const {

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "pmsm_param_id/identification/identifiers.hpp"
+#include "pmsm_param_id/model/frames.hpp"
 
 namespace pmsm_param_id {
 
@@ -109,6 +110,11 @@ void EkfIdentifier::update(const Sample& s, bool, bool continuity_broken) {
     k.u_q -= stats_.inverterVoltage() * sq;
   }
   const double T = s.t - k.t;
+  if (stats_.voltageAngle() != 0.0) {  // the drive's voltage angle from the data's exact fit: the acting vector
+    const Vec2 turned = rotate({k.u_d, k.u_q}, stats_.voltageAngle() * k.omega_e * stats_.nominalPeriod());
+    k.u_d = turned.x;
+    k.u_q = turned.y;
+  }
   Mat6 F;
   EkfCrossSaturation cross;  // a saturating machine: the known cross terms of the data's exact fit
   if (stats_.crossSaturationSet())

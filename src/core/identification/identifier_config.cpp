@@ -2,6 +2,8 @@
 
 #include "pmsm_param_id/io/yaml_reader.hpp"
 
+#include <cmath>
+
 namespace pmsm_param_id {
 
 const std::string& methodList() {
@@ -21,6 +23,8 @@ void validate(const IdentifierConfig& c, const std::string& source) {
     fail("current_sensors.gains", "estimate needs current_sensors.offsets: estimate (the same projection)");
   if (c.magnetics.cross_saturation && c.inverter.estimate_voltage)
     fail("magnetics.cross_saturation", "not together with inverter.model: estimate (not supported yet)");
+  if (c.magnetics.cross_saturation && c.window.estimate_voltage_angle)
+    fail("magnetics.cross_saturation", "not together with time.voltage_angle: estimate (not supported yet)");
   for (int p = 0; p < kParameterCount; ++p) {
     const std::string name = parameterNames()[p];
     if (c.search.fixed_bounds) {
@@ -131,6 +135,16 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   c.window.voltage_delay_samples = static_cast<int>(y.integer("time.voltage_delay_samples", 0, 0, 1));
   const std::string hold = y.oneOf("time.voltage_hold", "dq", {"dq", "stationary"});
   c.window.stationary_hold = hold == "stationary";
+  c.window.estimate_voltage_angle = y.oneOf("time.voltage_angle", "none", {"none", "estimate"}) == "estimate";
+  if (y.has("time.angle_prediction")) {
+    // The drive's declared prediction k_p against the one the delay and hold model already carry: the
+    // vector aligned with the rotor at the start of its period (k_p = delay) under the stationary
+    // hold, at mid-period (k_p = delay + 1/2) under the rotor-frame hold.
+    const double k_p = y.number("time.angle_prediction");
+    if (!(std::abs(k_p) <= 4.0)) y.fail("time.angle_prediction", "must be in [-4, 4] periods of omega_e T_s");
+    const double own = c.window.voltage_delay_samples + (c.window.stationary_hold ? 0.0 : 0.5);
+    c.window.declared_voltage_angle = k_p - own;
+  }
   const std::string model = y.oneOf("inverter.model", "none", {"none", "estimate"});
   c.inverter.estimate_voltage = model == "estimate";
   c.window.inverter_zero_crossing_current = y.nonNegative("inverter.zero_crossing_current", 0.0, " [A] (0 = sign)");

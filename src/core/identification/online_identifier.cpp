@@ -228,6 +228,11 @@ void OnlineIdentifier::adoptExactFitTerms(const FitCheck& fit) {
   // The stationary hold's bending of the currents needs the inductances: the data's, once determined.
   if (config_.window.stationary_hold && fit.available && fitDetermines(fit, kLd, 0.1) && fitDetermines(fit, kLq, 0.1))
     stats_.setHoldInductances(fit.optimum[kLd], fit.optimum[kLq]);
+  // The drive's voltage angle, likewise taken as known by the swarm's fitness (a direction the
+  // window leaves open keeps the fit's value on its ridge: the parameters along it are then not
+  // identified, whichever value the fitness takes).
+  if (fit.voltage_angle_modelled)
+    stats_.setVoltageAngle(std::isfinite(fit.voltage_angle) && std::abs(fit.voltage_angle) < 4.0 ? fit.voltage_angle : 0.0);
   // The swarm's fitness (and RLS, EKF) take the data's estimate of the inverter voltage as known:
   // the paper's swarm searches four dimensions; V is profiled out by the exact fit.
   if (!fit.inverter_modelled) return;
@@ -241,8 +246,11 @@ void OnlineIdentifier::adoptExactFitTerms(const FitCheck& fit) {
   // currents again: an observer run with a wrong model feeds the fit wrong shapes, and the fit
   // would never become consistent again to correct it (with a 10 % limit that locked 11 of 30
   // robot-joint swarm runs into a poor fit).
+  // (Determined with the drive's timing at its estimate: along the ridge where L_q and the voltage
+  // angle trade, every point predicts the same currents, which is all the observer needs.)
   bool all = usable && fit.consistent;
-  for (int p = 0; p < kParameterCount; ++p) all = all && fitDetermines(fit, p, 0.01);
+  for (int p = 0; p < kParameterCount; ++p)
+    all = all && fit.determined[p] && fit.relative_std_known_timing[p] <= 0.01 && plausible(p, fit.optimum[p]);
   if (all) stats_.setShapeObserverModel(fit.optimum);
   else if (!fit.consistent) stats_.setShapeObserverModel({});
 }

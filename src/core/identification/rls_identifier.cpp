@@ -31,6 +31,10 @@ void RlsIdentifier::update(const Sample& s, bool new_block, bool) {
   const double V_wide = stats_.inverterWideShare(), V_bus = stats_.inverterBusShare();
   double y_d = d(kIntegralUd) - V_wide * (d(kIntegralInverterWideD) - d(kIntegralInverterD)) - V_bus * d(kIntegralInverterBusD);
   double y_q = q(kIntegralUq) - V_wide * (q(kIntegralInverterWideQ) - q(kIntegralInverterQ)) - V_bus * q(kIntegralInverterBusQ);
+  // The drive's voltage angle from the data's exact fit (time.voltage_angle: estimate): the acting voltage.
+  const double angle = stats_.voltageAngle();
+  y_d -= angle * d(kIntegralAngleUqInD);
+  y_q += angle * q(kIntegralAngleUdInQ);
   if (stats_.crossSaturationSet()) {
     // A saturating machine (section 11): the swarms' model, with L_qq and L_dq from the data's exact
     // fit taken as known and moved to the measured side; L_q and psi_f the secant and the flux at i_bar.
