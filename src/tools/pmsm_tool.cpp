@@ -83,6 +83,10 @@ json estimateJson(const Estimate& e) {
                            {"reason", e.inverter_reason},
                            {"relative_uncertainty", numberOrNull(e.inverter_relative_uncertainty)},
                            {"bus_share", numberOrNull(e.fit.inverter_bus_share)}};
+  if (e.fit.voltage_angle_modelled)
+    j["voltage_angle"] = {{"value", numberOrNull(e.fit.voltage_angle)},
+                          {"standard_deviation", numberOrNull(e.fit.voltage_angle_std)},
+                          {"from_long_window", e.fit.voltage_angle_from_long_window}};
   j["fitness"] = numberOrNull(e.fitness);
   j["samples"] = e.counters.used;
   j["skipped"] = e.counters.skipped();
@@ -141,6 +145,9 @@ void printEstimate(const Estimate& e, bool thermal_enabled = false) {
   }
   if (e.fit.inverter_modelled)
     std::printf("  inverter voltage = %.4g V %s %s\n", e.inverter_voltage, toString(e.inverter_status), e.inverter_reason.c_str());
+  if (e.fit.voltage_angle_modelled)
+    std::printf("  voltage angle (data's fit) = %.3g +- %.2g omega_e T_s beyond the declared timing%s\n", e.fit.voltage_angle,
+                e.fit.voltage_angle_std, e.fit.voltage_angle_from_long_window ? " (from the long window)" : "");
   if (e.fit.cross_saturation_modelled)
     std::printf("  saturation (data's fit): incremental L_qq = %.4g H +- %.2g, cross L_dq = %.4g H +- %.2g\n", e.fit.L_qq,
                 e.fit.L_qq_std, e.fit.L_dq, e.fit.L_dq_std);

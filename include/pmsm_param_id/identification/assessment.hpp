@@ -72,6 +72,9 @@ struct FitCheck {
   bool voltage_angle_modelled = false;
   double voltage_angle = NAN;       ///< a [periods of omega_e T_s]
   double voltage_angle_std = NAN;   ///< its standard deviation [-] (inf: undetermined)
+  /// The angle came from the long check window (it determined it better than the fitness window):
+  /// the fitness window's fit holds it there, and the parameters' std include its std's effect.
+  bool voltage_angle_from_long_window = false;
   /// Per parameter: the relative std with a held at its estimate (what the data would give if the
   /// drive's timing were known); where this is within the limit and relative_std is not, the
   /// parameter cannot be told from the drive's timing in this window.

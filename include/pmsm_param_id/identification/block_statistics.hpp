@@ -196,7 +196,6 @@ class BlockStatistics {
     // counts fixed at compile time so that the compiler unrolls them.
     // (The q form continues the d form's sum: the same order of additions as one loop over both.)
     const auto [Sd, Sq] = fitnessSums();
-    if (voltage_angle_ != 0.0) return fitnessWithVoltageAngle(p, Sd, Sq);
     static_assert(kIntegralInverterD == 4 && kIntegralInverterWideD == 6 && kIntegralInverterBusD == 7 &&
                       kIntegralInverterQ == 5 && kIntegralInverterWideQ == 7 && kIntegralInverterBusQ == 8,
                   "the fitness's weight arrays follow the block entries");
@@ -212,8 +211,6 @@ class BlockStatistics {
                               : upperForm<5>(Sq, wq, upperForm<4>(Sd, wd, 0.0));
     return std::max(0.0, 2.0 * f / stored_weight_);
   }
-  /// fitness() with a known voltage angle (setVoltageAngle): every entry's weight, the general form.
-  double fitnessWithVoltageAngle(const ParameterVector& p, const ProductD& Sd, const ProductQ& Sq) const;
   /// fitness() at n points in one call (the swarm evaluates every particle's move at once): the same
   /// values, each computed as fitness() computes it, without a call per point.
   void fitness(const ParameterVector* p, std::size_t n, double* out) const;
@@ -244,7 +241,10 @@ class BlockStatistics {
   double inverterVoltage() const { return inverter_voltage_; }
   /// The voltage angle coefficient a the fitness takes as known (acting vector turned by
   /// a omega_e T_s; 0: none) [-]; set from the data's exact fit (WindowSettings::estimate_voltage_angle).
-  void setVoltageAngle(double a) { voltage_angle_ = a; }
+  void setVoltageAngle(double a) {
+    if (a != voltage_angle_) angle_sums_stale_ = true;
+    voltage_angle_ = a;
+  }
   double voltageAngle() const { return voltage_angle_; }
   double inverterWideShare() const { return inverter_wide_share_; }
   double inverterBusShare() const { return inverter_bus_share_; }
@@ -342,11 +342,21 @@ class BlockStatistics {
   }
   /// The (upper-triangle) sums every fitness reads: projected off the sensor errors when they are
   /// fitted out.
+  /// With a known voltage angle a, the sums of the acting voltage's entries instead of the logged
+  /// ones (U_d - a A_d, U_q + a A_q): the fitness then reads the entries it reads without one.
   std::pair<const ProductD&, const ProductQ&> fitnessSums() const {
-    if (!settings_.sensor_offsets) return {S_d_, S_q_};
-    refreshProjection();
-    return {P_d_, P_q_};
+    const ProductD* d = &S_d_;
+    const ProductQ* q = &S_q_;
+    if (settings_.sensor_offsets) {
+      refreshProjection();
+      d = &P_d_;
+      q = &P_q_;
+    }
+    if (voltage_angle_ == 0.0) return {*d, *q};
+    if (angle_sums_stale_) updateAngleSums(*d, *q);
+    return {angle_d_, angle_q_};
   }
+  void updateAngleSums(const ProductD& d, const ProductQ& q) const;
 
   WindowSettings settings_;
   int block_samples_ = 0;
@@ -380,6 +390,9 @@ class BlockStatistics {
   std::uint64_t blocks_ = 0;
   double inverter_voltage_ = 0.0, inverter_wide_share_ = 0.0, inverter_bus_share_ = 0.0;
   double voltage_angle_ = 0.0;
+  mutable ProductD angle_d_ = ProductD::Zero();  // fitnessSums() with the voltage angle applied
+  mutable ProductQ angle_q_ = ProductQ::Zero();
+  mutable bool angle_sums_stale_ = true;
   double bus_reference_ = std::numeric_limits<double>::quiet_NaN();
   double hold_L_d_ = 0.0, hold_L_q_ = 0.0;
   ParameterVector observer_model_{};          // R_s, L_d, L_q, psi_f of the shape's observer (0: none yet)

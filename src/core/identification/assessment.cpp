@@ -262,8 +262,43 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
                             (window.block_duration * window.block_duration);
   const double floor2 = a.fit_floor_relative * a.fit_floor_relative * current_ms;
   window.min_noise_variance = floor2;
-  const BlockFit f = BlockLeastSquares::fit(window, model, s, {}, a.variance_inflation);
-  if (!f.ok) return out;
+  const BlockFit free_fit = BlockLeastSquares::fit(window, model, s, {}, a.variance_inflation);
+  if (!free_fit.ok) return out;
+  // The drive's voltage angle is a constant of its firmware: where the long check window (its
+  // differenced blocks over long_time_constant, load and speed changes included) determines it
+  // better than the fitness window, the fitness window takes it from there, and each parameter's
+  // standard deviation adds what one standard deviation of that angle moves it by.
+  BlockFit f = free_fit;
+  double angle_std = std::numeric_limits<double>::infinity();
+  std::vector<bool> hold_angle(static_cast<std::size_t>(model.size()), false);
+  hold_angle[static_cast<std::size_t>(angle_index)] = true;
+  ParameterVector angle_shift{};  // |p(a + sigma_a) - p(a)| [SI]
+  if (estimate_angle) {
+    if (free_fit.determined[static_cast<std::size_t>(angle_index)]) angle_std = free_fit.standard_deviation(angle_index);
+    WindowSums long_window = stats.longWindow();
+    if (long_window.hasBlocks()) {
+      long_window.noise_variance_d = 2.0 * free_fit.noise_variance_d;  // a difference of two independent blocks
+      long_window.noise_variance_q = 2.0 * free_fit.noise_variance_q;
+      long_window.min_noise_variance = 2.0 * floor2;
+      const BlockFit long_fit = BlockLeastSquares::fit(long_window, model, free_fit.beta, {}, a.variance_inflation);
+      const double long_std = long_fit.ok && long_fit.determined[static_cast<std::size_t>(angle_index)]
+                                  ? long_fit.standard_deviation(angle_index)
+                                  : std::numeric_limits<double>::infinity();
+      if (long_std < angle_std && std::isfinite(long_fit.beta(angle_index))) {
+        Eigen::VectorXd at = free_fit.beta;
+        at(angle_index) = long_fit.beta(angle_index);
+        const BlockFit known = BlockLeastSquares::fit(window, model, at, hold_angle, a.variance_inflation);
+        at(angle_index) += long_std;
+        const BlockFit shifted = BlockLeastSquares::fit(window, model, at, hold_angle, a.variance_inflation);
+        if (known.ok && shifted.ok) {
+          f = known;
+          angle_std = long_std;
+          out.voltage_angle_from_long_window = true;
+          for (int p = 0; p < kParameterCount; ++p) angle_shift[p] = std::abs(shifted.beta(p) - known.beta(p));
+        }
+      }
+    }
+  }
   out.available = true;
   if (estimate_cross) {
     out.cross_saturation_modelled = true;
@@ -282,19 +317,18 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   for (int p = 0; p < kParameterCount; ++p) {
     out.optimum[p] = f.beta(p);
     out.determined[p] = f.determined[p];
-    out.relative_std[p] = f.standard_deviation(p) / std::abs(f.beta(p));
+    out.relative_std[p] = std::hypot(f.standard_deviation(p), angle_shift[p]) / std::abs(f.beta(p));
   }
   out.relative_std_known_timing = out.relative_std;
   if (estimate_angle) {
     out.voltage_angle_modelled = true;
     out.voltage_angle = f.beta(angle_index);
-    out.voltage_angle_std = f.determined[static_cast<std::size_t>(angle_index)] ? f.standard_deviation(angle_index)
-                                                                                : std::numeric_limits<double>::infinity();
+    out.voltage_angle_std = angle_std;
     // The same window with the angle held at its estimate: where a parameter is determined then
     // and not with the angle free, the window cannot tell that parameter from the drive's timing.
-    std::vector<bool> hold(static_cast<std::size_t>(model.size()), false);
-    hold[static_cast<std::size_t>(angle_index)] = true;
-    const BlockFit known = BlockLeastSquares::fit(window, model, f.beta, hold, a.variance_inflation);
+    const BlockFit known = out.voltage_angle_from_long_window
+                               ? f
+                               : BlockLeastSquares::fit(window, model, f.beta, hold_angle, a.variance_inflation);
     if (known.ok)
       for (int p = 0; p < kParameterCount; ++p)
         out.relative_std_known_timing[p] = known.standard_deviation(p) / std::abs(known.beta(p));

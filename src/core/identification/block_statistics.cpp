@@ -43,6 +43,7 @@ void BlockStatistics::reset() {
   P_d_.setZero();
   P_q_.setZero();
   projection_stale_ = true;
+  angle_sums_stale_ = true;
   long_N_.setZero();
   long_C_d_.setZero();
   long_C_q_.setZero();
@@ -582,6 +583,7 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
   ++blocks_;
   if (scale_ > 1e150) rescale();
   projection_stale_ = true;
+  angle_sums_stale_ = true;
   // Every M-th block of a stretch: consecutive non-overlapping blocks, and the long window keeps
   // their differences. Differencing removes what varies slowly (a drifting R_s or psi_f would
   // otherwise bias a constant-parameter fit over seconds) and keeps the steps.
@@ -755,31 +757,19 @@ double BlockStatistics::crossLinearisationCurrent() const {
   for (std::size_t i = 0; i < n; ++i) out[i] = fitnessWithCrossSaturation(p[i]);
 }
 
-double BlockStatistics::fitnessWithVoltageAngle(const ParameterVector& p, const ProductD& Sd, const ProductQ& Sq) const {
-  // The acting voltage is the logged one turned by a omega_e T_s: int u_d - a A_d, int u_q + a A_q.
-  const double inv_Ld = 1.0 / p[kLd], inv_Lq = 1.0 / p[kLq];
-  const InverterMix mix = inverterMix();
-  std::array<double, kBlockSizeD> wd{};
-  std::array<double, kBlockSizeQ> wq{};
-  wd[kDeltaId] = 1.0;
-  wd[kIntegralId] = p[kRs] * inv_Ld;
-  wd[kIntegralOmegaIq] = -p[kLq] * inv_Ld;
-  wd[kIntegralUd] = -inv_Ld;
-  wd[kIntegralInverterD] = mix.narrow * inv_Ld;
-  wd[kIntegralInverterWideD] = mix.wide * inv_Ld;
-  wd[kIntegralInverterBusD] = mix.bus * inv_Ld;
-  wd[kIntegralAngleUqInD] = voltage_angle_ * inv_Ld;
-  wq[kDeltaIq] = 1.0;
-  wq[kIntegralIq] = p[kRs] * inv_Lq;
-  wq[kIntegralOmegaId] = p[kLd] * inv_Lq;
-  wq[kIntegralUq] = -inv_Lq;
-  wq[kIntegralOmega] = p[kPsiF] * inv_Lq;
-  wq[kIntegralInverterQ] = mix.narrow * inv_Lq;
-  wq[kIntegralInverterWideQ] = mix.wide * inv_Lq;
-  wq[kIntegralInverterBusQ] = mix.bus * inv_Lq;
-  wq[kIntegralAngleUdInQ] = -voltage_angle_ * inv_Lq;
-  const double f = upperForm<kBlockSizeQ>(Sq, wq.data(), upperForm<kBlockSizeD>(Sd, wd.data(), 0.0));
-  return std::max(0.0, 2.0 * f / stored_weight_);
+void BlockStatistics::updateAngleSums(const ProductD& d, const ProductQ& q) const {
+  // z' = T z with the voltage entry U' = U - a A (d) or U + a A (q): T S T^T changes only the
+  // voltage entry's row and column (upper triangles read; the result full).
+  const auto transform = [](const auto& S, auto& out, int U, int A, double k) {
+    out = S.template selfadjointView<Eigen::Upper>();
+    const double SUA = out(U, A), SAA = out(A, A);
+    for (int j = 0; j < out.cols(); ++j) out(U, j) += k * out(A, j);
+    for (int i = 0; i < out.rows(); ++i) out(i, U) = out(U, i);
+    out(U, U) = S(U, U) + 2.0 * k * SUA + k * k * SAA;
+  };
+  transform(d, angle_d_, kIntegralUd, kIntegralAngleUqInD, -voltage_angle_);
+  transform(q, angle_q_, kIntegralUq, kIntegralAngleUdInQ, voltage_angle_);
+  angle_sums_stale_ = false;
 }
 
 double BlockStatistics::fitnessWithCrossSaturation(const ParameterVector& p) const {
