@@ -230,8 +230,11 @@ void IdentifierNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("estimates withheld (no estimate yet)", nonfinite_estimates_);
   for (int p = 0; p < kParameterCount; ++p)
     stat.add(parameterNames()[p], std::string(toString(e.status[p])) + ": " + e.reason[p]);
+  stat.add("drive model", e.drive_model.empty() ? std::string("as configured") : e.drive_model);
   if (e.fit.inverter_modelled)
     stat.addf("inverter voltage [V]", "%.4g (%s: %s)", e.inverter_voltage, toString(e.inverter_status), e.inverter_reason.c_str());
+  if (e.fit.voltage_angle_modelled)
+    stat.addf("voltage angle [omega_e T_s]", "%.3g +- %.2g", e.fit.voltage_angle, e.fit.voltage_angle_std);
   if (identifier_->config().thermal.enabled) {
     const auto temperature = [&](const char* key, const Temperature& t) {
       if (std::isfinite(t.value)) stat.addf(key, "%.1f +- %.1f K", t.value, t.uncertainty);

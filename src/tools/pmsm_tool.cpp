@@ -83,6 +83,7 @@ json estimateJson(const Estimate& e) {
                            {"reason", e.inverter_reason},
                            {"relative_uncertainty", numberOrNull(e.inverter_relative_uncertainty)},
                            {"bus_share", numberOrNull(e.fit.inverter_bus_share)}};
+  j["drive_model"] = e.drive_model.empty() ? json("as configured") : json(e.drive_model);
   if (e.fit.voltage_angle_modelled)
     j["voltage_angle"] = {{"value", numberOrNull(e.fit.voltage_angle)},
                           {"standard_deviation", numberOrNull(e.fit.voltage_angle_std)},
@@ -145,6 +146,7 @@ void printEstimate(const Estimate& e, bool thermal_enabled = false) {
   }
   if (e.fit.inverter_modelled)
     std::printf("  inverter voltage = %.4g V %s %s\n", e.inverter_voltage, toString(e.inverter_status), e.inverter_reason.c_str());
+  if (!e.drive_model.empty()) std::printf("  drive model: %s\n", e.drive_model.c_str());
   if (e.fit.voltage_angle_modelled)
     std::printf("  voltage angle (data's fit) = %.3g +- %.2g omega_e T_s beyond the declared timing%s\n", e.fit.voltage_angle,
                 e.fit.voltage_angle_std, e.fit.voltage_angle_from_long_window ? " (from the long window)" : "");

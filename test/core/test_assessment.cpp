@@ -1244,3 +1244,47 @@ TEST(VoltageAngle, TheSwarmsFitnessWithAKnownAngleIsTheModelsMeanSquareResidual)
     EXPECT_EQ(batch, stats.fitness(p));
   }
 }
+
+// The drive model chosen from the data when nothing about the drive is declared (doc/algorithm.md
+// section 8).
+TEST(DriveModel, WithNothingDeclaredARealDrivesLogGetsTheRealDrivesModel) {
+  const auto data = test_helpers::run(test_helpers::scenario("industrial_pwm.yaml"));
+  for (const char* method : {"wls", "fbdapso"}) {
+    const Estimate e = identify(samplesOf(data), method, IdentifierConfig{});
+    EXPECT_NE(e.drive_model.find("real drive, from the data"), std::string::npos) << method << ": '" << e.drive_model << "'";
+    EXPECT_NE(e.drive_model.find("current-sensor offsets and gains"), std::string::npos) << e.drive_model;  // theta_e logged
+    EXPECT_TRUE(e.fit.consistent) << method << " " << e.fit.likely_cause;
+    EXPECT_TRUE(e.identifiable[kPsiF]) << method << " " << e.reason[kPsiF];
+    expectIdentifiedWithinStated(e, data.back().truth, method);
+  }
+}
+
+TEST(DriveModel, AnIdealDriveAndAMotorsStepChangeKeepThePapersModel) {
+  // The paper's model fits an ideal drive; a demagnetisation step misfits the window only until it
+  // is forgotten, and must not switch the model.
+  for (const char* file : {"wc1_drive.yaml", "demagnetisation.yaml", "inter_turn_fault.yaml"}) {
+    const auto data = test_helpers::run(test_helpers::scenario(file));
+    const Estimate e = identify(samplesOf(data), "wls", IdentifierConfig{});
+    EXPECT_EQ(e.drive_model, "") << file;
+    EXPECT_TRUE(e.fit.consistent) << file << " " << e.fit.likely_cause;
+  }
+}
+
+TEST(DriveModel, ADeclaredModelIsKeptAndChecked) {
+  const auto data = test_helpers::run(test_helpers::scenario("industrial_pwm.yaml"));
+  const std::string path = test_helpers::writeTemp("declared.yaml", "drive_model: declared\n");
+  const IdentifierConfig declared = loadIdentifierConfig(path);
+  EXPECT_FALSE(declared.automatic_drive_model);
+  const Estimate e = identify(samplesOf(data), "wls", declared);
+  EXPECT_EQ(e.drive_model, "");
+  EXPECT_FALSE(e.fit.consistent);
+  EXPECT_FALSE(e.fit.likely_cause.empty());
+  for (int p = 0; p < kParameterCount; ++p) EXPECT_FALSE(e.identifiable[p]) << parameterNames()[p];
+  // Declaring any of the drive's keys declares the model.
+  const std::string delay = test_helpers::writeTemp("delay.yaml", "time: {voltage_delay_samples: 1}\n");
+  EXPECT_FALSE(loadIdentifierConfig(delay).automatic_drive_model);
+  const std::string none = test_helpers::writeTemp("none.yaml", "method: rls\n");
+  EXPECT_TRUE(loadIdentifierConfig(none).automatic_drive_model);
+  EXPECT_TRUE(loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/default.yaml")).automatic_drive_model);
+  EXPECT_FALSE(loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/real_drive.yaml")).automatic_drive_model);
+}

@@ -34,6 +34,17 @@ constexpr ParameterVector kPlausibleLower{1e-4, 1e-7, 1e-7, 1e-5};
 constexpr ParameterVector kPlausibleUpper{1e3, 10.0, 10.0, 50.0};
 bool plausible(int parameter, double value);
 
+/// What the fit diagnosis names as the likely cause of a misfit.
+enum class MisfitCause : std::uint8_t {
+  None = 0,
+  Unit,          ///< the speed's or the time's unit
+  Delay,         ///< the voltage acts a whole sample later or earlier than declared
+  VoltageAngle,  ///< the voltage acts turned against the declared timing (angle prediction)
+  Inverter,      ///< an inverter error voltage along the current
+  Saturation,    ///< a cross-saturation inductance
+  Other,         ///< e.g. a log decimated from a faster loop
+};
+
 /// The data's own verdict, the same for every method on the same window.
 struct FitCheck {
   bool available = false;          ///< blocks exist and the exact fit succeeded
@@ -50,6 +61,8 @@ struct FitCheck {
   double speed_scale_short = NAN;  ///< speed-term / current-step-term inductance ratio, fitness window [-]
   double speed_scale_long = NAN;   ///< the same over the long check window [-] (1 when the units are right)
   std::string likely_cause;        ///< one line when the fit is poor and a cause fits the data
+  MisfitCause likely_cause_kind = MisfitCause::None;
+  double misfit_delay = 0.0;       ///< the delay that fits [samples] when likely_cause_kind is Delay
   double sampling_floor = 0.0;     ///< (omega_e T_s)^2: relative error of sampled integrals at speed [-]
   /// c z^2, z = T_s V / (w L): the inverter error's zero crossings within a period, where the
   /// currents are not the chords between the samples; added to L_d's stated uncertainty while the

@@ -80,8 +80,16 @@ struct TimeSettings {
   double max_gap_periods = 3.0; ///< a step longer than this many nominal periods is a gap [-]
 };
 
+/// The inverter error's zero-crossing width the automatic drive model assumes [A] (that of
+/// config/identifiers/real_drive.yaml; the fitted shape mixes it with twice it).
+constexpr double kAutomaticZeroCrossingCurrent = 0.3;
+
 struct IdentifierConfig {
   std::string method = "fbdapso";   ///< fbdapso | sapso | pso | ekf | rls | wls
+  /// drive_model: auto and nothing about the drive declared (delay, hold, voltage angle or
+  /// prediction, inverter, current sensors, cross-saturation): the identifier switches to the real
+  /// drive's model where the data show one (doc/algorithm.md section 8).
+  bool automatic_drive_model = true;
   std::uint64_t seed = 1;
   SearchSettings search;
   WindowSettings window;

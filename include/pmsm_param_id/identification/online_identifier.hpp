@@ -58,6 +58,9 @@ struct Estimate {
   ParameterStatus inverter_status = ParameterStatus::NoData;
   std::string inverter_reason;
   double inverter_relative_uncertainty = 0.0;  ///< [-]
+  /// The drive model in use when the identifier chose it from the data (nothing declared, doc/
+  /// algorithm.md section 8); empty while it is the configured one.
+  std::string drive_model;
   Temperature winding_temperature;  ///< from R_s while identified (thermal: block), else NaN [degC]
   Temperature magnet_temperature;   ///< from psi_f while identified (thermal: block), else NaN [degC]
   OperatingPoint operating_point;   ///< means over the fitness window (its forgetting time constant)
@@ -129,6 +132,8 @@ class OnlineIdentifier {
   SampleStatus processTimed(const Sample& s, SampleStatus status);
   bool tryStart();
   void adoptExactFitTerms(const FitCheck& fit);
+  /// Nothing about the drive declared: switches to the real drive's model where the data show one.
+  void watchDriveModel();
   void setBox(const ParameterVector& centre);
 
   IdentifierCounters counters_;
@@ -153,6 +158,13 @@ class OnlineIdentifier {
   mutable double largest_operating_current_ = 0.0;  // [A], as the map's cells scale with it
   double first_sample_t_ = std::numeric_limits<double>::quiet_NaN();  // of the run (thermal learning)
   double operating_alpha_ = 0.0, operating_alpha_tau_ = -1.0;  // thermal references learnt at the start
+  // The drive model chosen from the data (watchDriveModel): the configured one to go back to.
+  WindowSettings declared_window_;
+  InverterModelSettings declared_inverter_;
+  bool drive_model_switched_ = false, delay_flipped_ = false, angle_logged_ = false;
+  int poor_drive_checks_ = 0;
+  double first_poor_drive_t_ = 0.0;  // when the present run of drive-effect misfits began [s]
+  std::string drive_model_note_;
 };
 
 /// Builds the identifier named by config.method. ConfigError on an unknown method or bad values.

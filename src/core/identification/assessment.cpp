@@ -128,17 +128,23 @@ WindowSums compensated(WindowSums w, double V, double V_wide, double V_bus, doub
   return w;
 }
 
-std::string misspecification(const WindowSums& window, const AssessmentSettings& a, const FitCheck& fit,
-                             const SpeedScale& speed_scale) {
+struct Misfit {
+  std::string text;
+  MisfitCause kind = MisfitCause::None;
+  double delay = 0.0;  // the delay alternative's a [samples] when it is the cause
+};
+Misfit misspecification(const WindowSums& window, const AssessmentSettings& a, const FitCheck& fit,
+                        const SpeedScale& speed_scale) {
   Eigen::VectorXd start4(4);
   for (int p = 0; p < kParameterCount; ++p) start4(p) = fit.optimum[p];
-  std::string best;
+  Misfit best;
   double best_fitness = fit.optimum_fitness;
-  const auto consider = [&](const BlockFit& f, bool significant, const std::string& text) {
+  const auto consider = [&](const BlockFit& f, bool significant, const std::string& text, MisfitCause kind,
+                            double delay = 0.0) {
     if (!f.ok || !significant || text.empty()) return;
-    if (f.fitness() < best_fitness || best.empty()) {
+    if (f.fitness() < best_fitness || best.text.empty()) {
       best_fitness = f.fitness();
-      best = text;
+      best = {text, kind, delay};
     }
   };
   // In the fitness window the current-step terms of a steady state are weak and biased by the
@@ -147,7 +153,7 @@ std::string misspecification(const WindowSums& window, const AssessmentSettings&
   if (!fit.consistent) {
     // Only a factor beyond 2.5 names a unit here (the bias reached 0.5 on correct data).
     const std::string text = unitCause(speed_scale, std::log(2.5));
-    consider(speed_scale.fit, !text.empty(), text);
+    consider(speed_scale.fit, !text.empty(), text, MisfitCause::Unit);
   }
   // With a saturating machine modelled, every alternative keeps its L_qq and L_dq.
   const bool cross = fit.cross_saturation_modelled;
@@ -174,7 +180,8 @@ std::string misspecification(const WindowSums& window, const AssessmentSettings&
              : format(d > 0 ? "the voltages act %.2g samples later than declared: raise time.voltage_delay_samples "
                               "(most drives apply a voltage one period after computing it)"
                             : "the voltages act %.2g samples earlier than declared: lower time.voltage_delay_samples",
-                      std::abs(d)));
+                      std::abs(d)),
+             fractional ? MisfitCause::Other : MisfitCause::Delay, d);
   }
   // The voltage acting at another angle than declared (the drive's angle prediction, which no log
   // records): a omega_e T_s of turn. At one steady operating point it is indistinguishable from L_q
@@ -189,7 +196,8 @@ std::string misspecification(const WindowSums& window, const AssessmentSettings&
              format("the voltage acts turned by %.2g omega_e T_s against the declared timing (the drive's angle "
                     "prediction, which the log does not record): set time.voltage_angle: estimate, or declare "
                     "time.angle_prediction",
-                    angle));
+                    angle),
+             MisfitCause::VoltageAngle);
   }
   // A saturating machine: the d-axis current steps drive the q axis through L_dq (reciprocity), and
   // R_s absorbs -omega_e L_dq. Relevant when L_dq is significant and its omega_e L_dq is more than
@@ -207,7 +215,8 @@ std::string misspecification(const WindowSums& window, const AssessmentSettings&
              format("the machine saturates: a cross-saturation inductance L_dq = %.3g H fits (the d current's "
                     "changes show in the q axis), and R_s absorbs -omega_e L_dq = %.3g ohm; set "
                     "magnetics.cross_saturation: true (doc/algorithm.md section 11)",
-                    Ldq, -omega * Ldq));
+                    Ldq, -omega * Ldq),
+             MisfitCause::Saturation);
   }
   // An inverter voltage error along the current vector (dead time, device drops): relevant when
   // it is more than 1 % of the resistive drop it would otherwise hide in R_s.
@@ -223,7 +232,8 @@ std::string misspecification(const WindowSums& window, const AssessmentSettings&
                              V > kSignificance * f.standard_deviation(4);
     consider(f, significant,
              format("an inverter voltage error of about %.3g V along the current (dead time, device drops) fits the "
-                    "data: R_s cannot be told from it; log the applied voltages or compensate dead time", V));
+                    "data: R_s cannot be told from it; log the applied voltages or compensate dead time", V),
+             MisfitCause::Inverter);
   }
   return best;
 }
@@ -396,7 +406,9 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
       unit_known = direct_cause.empty();
     }
     const SpeedScale short_scale = measureSpeedScale(corrected, a, out);
-    std::string cause = misspecification(corrected, a, out, unit_known ? SpeedScale{} : short_scale);
+    const Misfit misfit = misspecification(corrected, a, out, unit_known ? SpeedScale{} : short_scale);
+    std::string cause = misfit.text;
+    MisfitCause kind = misfit.kind;
     // The unit of the speed shows only where the window holds q-axis current steps; the fitness
     // window may have forgotten them (a start-up, a load step), the long window has not.
     WindowSums long_window = compensated(stats.longWindow(), V, V_wide, V_bus, angle);
@@ -412,13 +424,21 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
       out.speed_scale_long = long_scale.scale();
       // A unit error explains the misfit of every other alternative too: it names the cause first.
       const std::string unit = unitCause(long_scale, 0.06);
-      if (!unit.empty() && !unit_known) cause = unit + " (over the long check window)";
+      if (!unit.empty() && !unit_known) {
+        cause = unit + " (over the long check window)";
+        kind = MisfitCause::Unit;
+      }
     }
-    if (!direct_cause.empty()) cause = direct_cause;
+    if (!direct_cause.empty()) {
+      cause = direct_cause;
+      kind = MisfitCause::Unit;
+    }
     if (unit_known) out.speed_unit_verified = true;
     if (!cause.empty()) {
       out.consistent = false;
       out.likely_cause = cause;
+      out.likely_cause_kind = kind;
+      out.misfit_delay = kind == MisfitCause::Delay ? misfit.delay : 0.0;
     }
   }
   return out;

@@ -156,6 +156,13 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
       y.positive("inverter.max_relative_uncertainty", c.inverter.max_relative_uncertainty);
   c.window.sensor_offsets = y.oneOf("current_sensors.offsets", "none", {"none", "estimate"}) == "estimate";
   c.window.sensor_gains = y.oneOf("current_sensors.gains", "none", {"none", "estimate"}) == "estimate";
+  // The drive model: chosen from the data unless something about the drive is declared.
+  const std::string drive_model = y.oneOf("drive_model", "auto", {"auto", "declared"});
+  bool drive_declared = false;
+  for (const char* key : {"time.voltage_delay_samples", "time.voltage_hold", "time.voltage_angle", "time.angle_prediction",
+                          "inverter.model", "current_sensors.offsets", "current_sensors.gains"})
+    drive_declared = drive_declared || y.has(key);
+  c.automatic_drive_model = drive_model == "auto" && !drive_declared && !c.magnetics.cross_saturation;
   bool thermal_reference_missing = false;
   if (y.has("thermal")) {
     ThermalSettings& t = c.thermal;

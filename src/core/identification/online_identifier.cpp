@@ -49,13 +49,93 @@ WindowSettings windowFor(const IdentifierConfig& c) {
 }  // namespace
 
 OnlineIdentifier::OnlineIdentifier(const IdentifierConfig& config)
-    : config_(config), stats_(windowFor(config)), period_(config.time.sample_period) {
+    : config_(config), stats_(windowFor(config)), period_(config.time.sample_period), declared_window_(config.window),
+      declared_inverter_(config.inverter) {
   validate(config_);
+}
+
+namespace {
+// How long a drive effect's misfit must last before the drive model changes, in forgetting time
+// constants of the fitness window: a motor's step change has left the window to e^-6 = 0.25 %.
+constexpr double kDriveEffectWindows = 6.0;
+}  // namespace
+
+void OnlineIdentifier::watchDriveModel() {
+  // Nothing about the drive declared: the paper's model first; where the data do not fit it and the
+  // fit diagnosis names a drive effect (an inverter error voltage, a voltage acting a sample late,
+  // or turned against the declared timing) twice running, the real drive's model: the inverter
+  // voltage and its shape, the voltage angle, the stationary hold, the current sensors' offsets
+  // and gains where the log has the angle, and the delay the data prefer (1 unless they name 0).
+  // Once in it, a whole-sample delay the data contradict is turned round once. Each change starts
+  // the statistics again (doc/algorithm.md section 8).
+  if (!config_.automatic_drive_model || config_.magnetics.cross_saturation || !stats_.hasBlocks()) return;
+  if (drive_model_switched_ && delay_flipped_) return;
+  const FitCheck fit = checkFit(stats_, config_.assessment, box_.valid ? box_.centre : kGenericCentre, true,
+                                config_.inverter.estimate_voltage, stats_.inverterVoltage(), false);
+  const MisfitCause kind = fit.likely_cause_kind;
+  const bool drive_effect = fit.available && !fit.consistent &&
+                            (kind == MisfitCause::Inverter || kind == MisfitCause::Delay || kind == MisfitCause::VoltageAngle);
+  // A drive effect stays; a change of the motor inside the window (a fault, a demagnetisation)
+  // misfits too, and the diagnosis may name a drive effect for it, but only until the window has
+  // forgotten the change: the misfit must last kDriveEffectWindows forgetting time constants.
+  // Only while the motor runs with current: at a standstill the noise level of the window falls to
+  // zero and whatever it still remembers of the run before misfits without end.
+  const OperatingPoint& op = operating_point_;
+  const bool running = std::hypot(op.i_d, op.i_q) > 10.0 * std::max(fit.noise_std_d, fit.noise_std_q) &&
+                       std::abs(op.omega_e) * period_.nominal() > 1e-4;
+  if (!drive_effect || !running || (drive_model_switched_ && kind != MisfitCause::Delay)) {
+    poor_drive_checks_ = 0;
+    return;
+  }
+  if (poor_drive_checks_++ == 0) first_poor_drive_t_ = last_t_;
+  if (last_t_ - first_poor_drive_t_ < kDriveEffectWindows * stats_.forgettingTimeConstant()) return;
+  poor_drive_checks_ = 0;
+  WindowSettings w = config_.window;
+  const auto delayFrom = [&](int present) {
+    return std::clamp(present + static_cast<int>(std::lround(fit.misfit_delay)), 0, 1);
+  };
+  char buf[240];
+  if (!drive_model_switched_) {
+    w.voltage_delay_samples = kind == MisfitCause::Delay ? delayFrom(w.voltage_delay_samples) : 1;
+    w.stationary_hold = true;
+    w.estimate_voltage_angle = true;
+    w.inverter_zero_crossing_current = kAutomaticZeroCrossingCurrent;
+    w.sensor_offsets = w.sensor_gains = angle_logged_;
+    config_.inverter.estimate_voltage = true;
+    drive_model_switched_ = true;
+    std::snprintf(buf, sizeof buf,
+                  "real drive, from the data at t = %.4g s: inverter voltage, voltage angle, stationary hold, delay %d%s",
+                  last_t_, w.voltage_delay_samples, angle_logged_ ? ", current-sensor offsets and gains" : "");
+  } else {
+    w.voltage_delay_samples = delayFrom(w.voltage_delay_samples);
+    delay_flipped_ = true;
+    if (w.voltage_delay_samples == config_.window.voltage_delay_samples) return;
+    std::snprintf(buf, sizeof buf, "%s; delay %d from t = %.4g s", drive_model_note_.c_str(), w.voltage_delay_samples,
+                  last_t_);
+  }
+  drive_model_note_ = buf;
+  config_.window = w;
+  stats_ = BlockStatistics(windowFor(config_));
+  stats_.configure(period_.nominal());
+  box_ = SearchBox{};
+  fit_cache_ = FitCheck{};
+  fit_blocks_ = ~0ull;
+  broken_ = true;
+  have_watched_ = false;
 }
 
 double OnlineIdentifier::temperature() const { return std::numeric_limits<double>::quiet_NaN(); }
 
 void OnlineIdentifier::reset() {
+  if (drive_model_switched_) {  // back to the configured drive model
+    config_.window = declared_window_;
+    config_.inverter = declared_inverter_;
+    stats_ = BlockStatistics(windowFor(config_));
+  }
+  drive_model_switched_ = false;
+  drive_model_note_.clear();
+  delay_flipped_ = false;
+  poor_drive_checks_ = 0;
   stats_.reset();
   period_.reset();
   held_.clear();
@@ -141,6 +221,7 @@ SampleStatus OnlineIdentifier::admit(const Sample& s, bool check_step, SampleSta
 
 SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status) {
   if (std::isnan(first_sample_t_)) first_sample_t_ = s.t;
+  angle_logged_ = std::isfinite(s.theta_e);
   const bool new_block = stats_.add(s);
   // The operating point: means forgotten with the fitness window's time constant.
   const double tau = stats_.forgettingTimeConstant();
@@ -169,6 +250,11 @@ SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status
     samples_since_refresh_ = 0;
     refreshSearchBox();
   }
+  // The drive model, where nothing about the drive was declared: watched at the same pace (before
+  // the box exists too: a real drive's data may never give the paper's model a scale).
+  if (config_.automatic_drive_model && new_block &&
+      stats_.blocks() % static_cast<std::uint64_t>(10 * config_.swarm.reset_iterations) == 0)
+    watchDriveModel();
   // A declared cold start: the thermal references are learnt from the data (see estimate()), whether or not
   // anybody asks for an estimate then (checked once per block length until both are learnt).
   const ThermalSettings& th = config_.thermal;
@@ -332,6 +418,8 @@ Estimate OnlineIdentifier::estimate() const {
   } else {  // keep the cached model tests, take the fresh optimum
     fit.consistent = fit.consistent && fit_cache_.consistent;
     fit.likely_cause = fit_cache_.likely_cause;
+    fit.likely_cause_kind = fit_cache_.likely_cause_kind;
+    fit.misfit_delay = fit_cache_.misfit_delay;
     fit.speed_unit_verified = fit_cache_.speed_unit_verified;
     fit.speed_scale_short = fit_cache_.speed_scale_short;
     fit.speed_scale_long = fit_cache_.speed_scale_long;
@@ -348,8 +436,10 @@ Estimate OnlineIdentifier::estimate() const {
                   "%s", T, T > 2e-3 ? (T < 2.0 ? "is time in ms?" : "is time in us?") : "is time in a unit other than s?");
     fit.consistent = false;
     fit.likely_cause = buf;
+    fit.likely_cause_kind = MisfitCause::Unit;
   }
   e.fit = fit;
+  e.drive_model = drive_model_note_;
   const Assessment a = assess(e.parameters, e.fit, atBound(), config_.assessment);
   const InverterAssessment inv = assessInverter(e.fit, config_.assessment, config_.inverter.max_relative_uncertainty);
   e.inverter_voltage = e.fit.inverter_modelled ? e.fit.inverter_voltage : std::numeric_limits<double>::quiet_NaN();
