@@ -88,6 +88,9 @@ struct FitCheck {
   /// The angle came from the long check window (it determined it better than the fitness window):
   /// the fitness window's fit holds it there, and the parameters' std include its std's effect.
   bool voltage_angle_from_long_window = false;
+  /// The inverter voltage and its shape came from the long check window in the same way (several
+  /// current magnitudes there separate V from R_s); inverter_relative_std is then the long window's.
+  bool inverter_from_long_window = false;
   /// Per parameter: the relative std with a held at its estimate (what the data would give if the
   /// drive's timing were known); where this is within the limit and relative_std is not, the
   /// parameter cannot be told from the drive's timing in this window.

@@ -51,6 +51,8 @@ struct LinearBlockModel {
   static LinearBlockModel crossSaturation(double i_bar);
   /// The same with L_d free in the speed term (the unit check on a saturating machine).
   static LinearBlockModel crossSaturationSpeedScale(double i_bar);
+  /// Any model + {a}: a multiple a of int(u_k - u_k-1), as delay() (a = 1: one sample late).
+  static LinearBlockModel withDelay(const LinearBlockModel& model);
   /// Any model + {a}: the acting voltage turned by a omega_e T_s against the declared timing (an
   /// unrecorded angle prediction, doc/algorithm.md section 8), appended after its own parameters.
   static LinearBlockModel withVoltageAngle(const LinearBlockModel& model);

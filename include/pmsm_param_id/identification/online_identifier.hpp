@@ -4,6 +4,8 @@
 // statistics, the data-driven search box and the assessment of every estimate.
 #pragma once
 #include <cstdint>
+#include <deque>
+#include <utility>
 #include <limits>
 #include <memory>
 #include <string>
@@ -162,8 +164,8 @@ class OnlineIdentifier {
   WindowSettings declared_window_;
   InverterModelSettings declared_inverter_;
   bool drive_model_switched_ = false, delay_flipped_ = false, angle_logged_ = false;
-  int poor_drive_checks_ = 0;
-  double first_poor_drive_t_ = 0.0;  // when the present run of drive-effect misfits began [s]
+  std::deque<std::pair<double, bool>> drive_checks_;  // (t, a drive effect named) of the recent checks
+  double first_drive_check_t_ = 0.0;  // the first check of the present evidence [s]
   std::string drive_model_note_;
 };
 

@@ -274,37 +274,67 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   window.min_noise_variance = floor2;
   const BlockFit free_fit = BlockLeastSquares::fit(window, model, s, {}, a.variance_inflation);
   if (!free_fit.ok) return out;
-  // The drive's voltage angle is a constant of its firmware: where the long check window (its
-  // differenced blocks over long_time_constant, load and speed changes included) determines it
-  // better than the fitness window, the fitness window takes it from there, and each parameter's
-  // standard deviation adds what one standard deviation of that angle moves it by.
+  // The drive's voltage angle and its inverter's error voltage (with its shape) are constants of the
+  // drive: where the long check window (its differenced blocks over long_time_constant, load and
+  // speed changes, several current magnitudes included) determines one better than the fitness
+  // window, the fitness window takes it from there, and each parameter's standard deviation adds
+  // what one standard deviation of it moves the parameter by. (R_s and V separate only across
+  // current magnitudes; the angle and L_q only across load or speed changes.)
   BlockFit f = free_fit;
   double angle_std = std::numeric_limits<double>::infinity();
-  std::vector<bool> hold_angle(static_cast<std::size_t>(model.size()), false);
-  hold_angle[static_cast<std::size_t>(angle_index)] = true;
-  ParameterVector angle_shift{};  // |p(a + sigma_a) - p(a)| [SI]
-  if (estimate_angle) {
-    if (free_fit.determined[static_cast<std::size_t>(angle_index)]) angle_std = free_fit.standard_deviation(angle_index);
+  if (estimate_angle && free_fit.determined[static_cast<std::size_t>(angle_index)])
+    angle_std = free_fit.standard_deviation(angle_index);
+  std::vector<bool> held(static_cast<std::size_t>(model.size()), false);  // the constants taken from the long window
+  ParameterVector constants_shift{};  // sqrt(sum over the held constants of (p(c + sigma_c) - p(c))^2) [SI]
+  double inverter_long_relative_std = std::numeric_limits<double>::infinity();
+  if (estimate_angle || estimate_inverter) {
     WindowSums long_window = stats.longWindow();
     if (long_window.hasBlocks()) {
       long_window.noise_variance_d = 2.0 * free_fit.noise_variance_d;  // a difference of two independent blocks
       long_window.noise_variance_q = 2.0 * free_fit.noise_variance_q;
       long_window.min_noise_variance = 2.0 * floor2;
       const BlockFit long_fit = BlockLeastSquares::fit(long_window, model, free_fit.beta, {}, a.variance_inflation);
-      const double long_std = long_fit.ok && long_fit.determined[static_cast<std::size_t>(angle_index)]
-                                  ? long_fit.standard_deviation(angle_index)
-                                  : std::numeric_limits<double>::infinity();
-      if (long_std < angle_std && std::isfinite(long_fit.beta(angle_index))) {
-        Eigen::VectorXd at = free_fit.beta;
+      const auto stdOf = [](const BlockFit& fit, int j) {
+        return fit.ok && fit.determined[static_cast<std::size_t>(j)] && std::isfinite(fit.beta(j)) ? fit.standard_deviation(j)
+                                                                                                  : std::numeric_limits<double>::infinity();
+      };
+      std::vector<bool> hold(static_cast<std::size_t>(model.size()), false);
+      std::vector<std::pair<int, double>> shifts;  // (entry, its long-window std)
+      Eigen::VectorXd at = free_fit.beta;
+      if (estimate_angle && stdOf(long_fit, angle_index) < stdOf(free_fit, angle_index)) {
+        hold[static_cast<std::size_t>(angle_index)] = true;
         at(angle_index) = long_fit.beta(angle_index);
-        const BlockFit known = BlockLeastSquares::fit(window, model, at, hold_angle, a.variance_inflation);
-        at(angle_index) += long_std;
-        const BlockFit shifted = BlockLeastSquares::fit(window, model, at, hold_angle, a.variance_inflation);
-        if (known.ok && shifted.ok) {
+        shifts.emplace_back(angle_index, stdOf(long_fit, angle_index));
+      }
+      const int shape_end = estimate_inverter ? (with_bus ? 7 : 6) : 4;
+      if (estimate_inverter && stdOf(long_fit, 4) < stdOf(free_fit, 4) && long_fit.beta(4) > 0) {
+        for (int j = 4; j < shape_end; ++j) {  // V with its shape's shares
+          hold[static_cast<std::size_t>(j)] = true;
+          at(j) = long_fit.beta(j);
+        }
+        shifts.emplace_back(4, stdOf(long_fit, 4));
+        inverter_long_relative_std = stdOf(long_fit, 4) / long_fit.beta(4);
+      }
+      if (!shifts.empty()) {
+        const BlockFit known = BlockLeastSquares::fit(window, model, at, hold, a.variance_inflation);
+        bool ok = known.ok;
+        ParameterVector sum2{};
+        for (const auto& [entry, sigma] : shifts) {
+          Eigen::VectorXd moved = at;
+          moved(entry) += sigma;
+          const BlockFit shifted = BlockLeastSquares::fit(window, model, moved, hold, a.variance_inflation);
+          ok = ok && shifted.ok;
+          for (int p = 0; p < kParameterCount && ok; ++p) sum2[p] += std::pow(shifted.beta(p) - known.beta(p), 2);
+        }
+        if (ok) {
           f = known;
-          angle_std = long_std;
-          out.voltage_angle_from_long_window = true;
-          for (int p = 0; p < kParameterCount; ++p) angle_shift[p] = std::abs(shifted.beta(p) - known.beta(p));
+          held = hold;
+          for (int p = 0; p < kParameterCount; ++p) constants_shift[p] = std::sqrt(sum2[p]);
+          if (hold[static_cast<std::size_t>(angle_index)] && estimate_angle) {
+            angle_std = stdOf(long_fit, angle_index);
+            out.voltage_angle_from_long_window = true;
+          }
+          out.inverter_from_long_window = std::isfinite(inverter_long_relative_std);
         }
       }
     }
@@ -322,12 +352,13 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     out.inverter_voltage = f.beta(4);
     out.inverter_wide_share = f.beta(5);
     out.inverter_bus_share = with_bus ? f.beta(6) : 0.0;
-    out.inverter_relative_std = f.standard_deviation(4) / std::abs(f.beta(4));
+    out.inverter_relative_std = out.inverter_from_long_window ? inverter_long_relative_std
+                                                              : f.standard_deviation(4) / std::abs(f.beta(4));
   }
   for (int p = 0; p < kParameterCount; ++p) {
     out.optimum[p] = f.beta(p);
     out.determined[p] = f.determined[p];
-    out.relative_std[p] = std::hypot(f.standard_deviation(p), angle_shift[p]) / std::abs(f.beta(p));
+    out.relative_std[p] = std::hypot(f.standard_deviation(p), constants_shift[p]) / std::abs(f.beta(p));
   }
   out.relative_std_known_timing = out.relative_std;
   if (estimate_angle) {
@@ -336,6 +367,9 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     out.voltage_angle_std = angle_std;
     // The same window with the angle held at its estimate: where a parameter is determined then
     // and not with the angle free, the window cannot tell that parameter from the drive's timing.
+    // (The constants the long window gave stay held: "known timing" means known timing alone.)
+    std::vector<bool> hold_angle = held;
+    hold_angle[static_cast<std::size_t>(angle_index)] = true;
     const BlockFit known = out.voltage_angle_from_long_window
                                ? f
                                : BlockLeastSquares::fit(window, model, f.beta, hold_angle, a.variance_inflation);

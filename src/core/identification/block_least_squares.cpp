@@ -234,6 +234,15 @@ const LinearBlockModel& LinearBlockModel::inverterWithShapeAndBus() {
   return model;
 }
 
+LinearBlockModel LinearBlockModel::withDelay(const LinearBlockModel& base_model) {
+  LinearBlockModel m = base_model;
+  m.name = base_model.name + "+delay";
+  const int a = addParameter(m, "voltage_delay");
+  m.G_d(kIntegralUdStep, a) = 1.0;
+  m.G_q(kIntegralUqStep, a) = 1.0;
+  return m;
+}
+
 LinearBlockModel LinearBlockModel::withVoltageAngle(const LinearBlockModel& base_model) {
   // + {a}: the acting vector is the logged one turned by a omega_e T_s (to first order
   // u + a omega_e T_s J u), so int u_d = ... + a int omega T_s u_q, int u_q = ... - a int omega T_s u_d.
