@@ -911,7 +911,8 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
 // ---------------------------------------------------------------------------------------------
 // perf: samples per second of wall time, one core, over a recorded run
 int runPerf(const std::string& scenario_path, const std::string& methods_arg, const std::string& config_path,
-            int repeat, const std::string& json_out, const std::string& paper_scenario_path) {
+            int repeat, const std::string& json_out, const std::string& paper_scenario_path,
+            const std::string& drive_scenario_path) {
   const std::vector<std::string> methods = methodsFrom(methods_arg);
   const Scenario scenario = loadScenario(scenario_path);
   const std::vector<SimulatedSample> data = simulate(scenario);
@@ -978,6 +979,43 @@ int runPerf(const std::string& scenario_path, const std::string& methods_arg, co
   }
   volatile double sink = fitness_sum;
   (void)sink;
+  // FBDAPSO on a real drive's recording with the same config (by default the drive model chosen
+  // from the data), against its cost on the first recording: the price of the drive model.
+  if (!drive_scenario_path.empty()) {
+    const Scenario drive_scenario = loadScenario(drive_scenario_path);
+    const std::vector<SimulatedSample> drive_data = simulate(drive_scenario);
+    const auto passRate = [&](const std::vector<SimulatedSample>& recording, std::uint64_t seed) {
+      IdentifierConfig c = base;
+      c.method = "fbdapso";
+      c.seed = seed;
+      auto id = makeIdentifier(c);
+      const auto t0 = std::chrono::steady_clock::now();
+      for (const auto& s : recording) id->process(s.sample);
+      return static_cast<double>(recording.size()) / std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    };
+    // Alternated pass by pass, so that the neighbours' load moves both alike.
+    std::vector<double> first, second, ratios;
+    std::string drive_model;
+    for (int r = 0; r < repeat; ++r) {
+      first.push_back(passRate(data, static_cast<std::uint64_t>(r) + 1));
+      second.push_back(passRate(drive_data, static_cast<std::uint64_t>(r) + 1));
+      ratios.push_back(first.back() / second.back());
+    }
+    {
+      IdentifierConfig c = base;
+      c.method = "fbdapso";
+      auto id = makeIdentifier(c);
+      for (const auto& s : drive_data) id->process(s.sample);
+      drive_model = id->estimate().drive_model;
+    }
+    const double rate = median(second), ratio = median(ratios);
+    std::printf("fbdapso on %s: %.1f ns/sample, %.2f x its cost on %s (drive model: %s)\n", drive_scenario.name.c_str(),
+                1e9 / rate, ratio, scenario.name.c_str(), drive_model.empty() ? "as configured" : drive_model.c_str());
+    records.push_back({{"kind", "method"}, {"method", "fbdapso"}, {"fitness", "block"}, {"samples_per_s", rate},
+                       {"ns_per_sample", 1e9 / rate}, {"ratio_to_scenario", ratio}, {"ratio_scenario", scenario.name},
+                       {"drive_model", drive_model}, {"samples", drive_data.size() * static_cast<std::size_t>(repeat)},
+                       {"scenario", drive_scenario.name}});
+  }
   // The paper's output-error fitness (section 10): its cost grows with the window N; measured on
   // the same 10 kHz recording and on a 1 MHz one (the paper's rate), for the swarm methods.
   std::vector<std::pair<std::string, std::vector<SimulatedSample>>> recordings{{scenario.name, data}};
@@ -1091,6 +1129,9 @@ int main(int argc, char** argv) {
   perf->add_option("--json", json_out, "one record per method");
   std::string paper_scenario;
   perf->add_option("--paper-scenario", paper_scenario, "a second recording for the paper fitness (e.g. 1 MHz wc1.yaml)");
+  std::string drive_scenario;
+  perf->add_option("--drive-scenario", drive_scenario,
+                   "a real drive's recording: FBDAPSO's cost there against the first (e.g. industrial_pwm.yaml)");
 
   CLI11_PARSE(app, argc, argv);
   try {
@@ -1114,7 +1155,7 @@ int main(int argc, char** argv) {
       return runIdentify(csv, method, config, seed, json_out, format, map_csv);
     }
     if (*bench) return runBench(scenario, seeds, methods, config, json_out, reference, threads, monitor, map_roundtrip);
-    if (*perf) return runPerf(scenario, methods, config, std::max(1, repeat), json_out, paper_scenario);
+    if (*perf) return runPerf(scenario, methods, config, std::max(1, repeat), json_out, paper_scenario, drive_scenario);
   } catch (const UserError& e) {  // bad configuration or input: exit status 2
     std::fprintf(stderr, "error: %s\n", e.what());
     return 2;

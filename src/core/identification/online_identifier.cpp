@@ -75,8 +75,15 @@ void OnlineIdentifier::watchDriveModel() {
   // the statistics again (doc/algorithm.md section 8).
   if (!config_.automatic_drive_model || config_.magnetics.cross_saturation || !stats_.hasBlocks()) return;
   if (drive_model_switched_ && delay_flipped_) return;
-  const FitCheck fit = checkFit(stats_, config_.assessment, box_.valid ? box_.centre : kGenericCentre, true,
-                                config_.inverter.estimate_voltage, stats_.inverterVoltage(), false);
+  // The plain fit first: where it fits (an ideal drive, every check) the diagnosis's dozen fits are
+  // not needed (they were a quarter of FBDAPSO's per-sample time on wc1_drive).
+  const ParameterVector from = box_.valid ? box_.centre : kGenericCentre;
+  const FitCheck plain = checkFit(stats_, config_.assessment, from, false, config_.inverter.estimate_voltage,
+                                  stats_.inverterVoltage(), false);
+  const FitCheck fit = plain.available && plain.consistent
+                           ? plain
+                           : checkFit(stats_, config_.assessment, from, true, config_.inverter.estimate_voltage,
+                                      stats_.inverterVoltage(), false);
   const MisfitCause kind = fit.likely_cause_kind;
   const bool drive_effect = fit.available && !fit.consistent &&
                             (kind == MisfitCause::Inverter || kind == MisfitCause::Delay || kind == MisfitCause::VoltageAngle);
