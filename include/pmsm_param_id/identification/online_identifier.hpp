@@ -166,6 +166,8 @@ class OnlineIdentifier {
   bool drive_model_switched_ = false, delay_flipped_ = false, angle_logged_ = false;
   std::deque<std::pair<double, bool>> drive_checks_;  // (t, a drive effect named) of the recent checks
   double first_drive_check_t_ = 0.0;  // the first check of the present evidence [s]
+  double last_drive_watch_t_ = -std::numeric_limits<double>::infinity();  // [s]
+  int quiet_drive_checks_ = 0;  // checks in a row where the paper's model fitted and no drive effect showed
   std::string drive_model_note_;
 };
 

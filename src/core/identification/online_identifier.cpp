@@ -59,63 +59,90 @@ namespace {
 // constants of the fitness window: a motor's step change has left the window to e^-6 = 0.25 %.
 constexpr double kDriveEffectWindows = 6.0;
 // The drive's effects (inverter voltage and shape, voltage angle, delay) must leave at most this
-// fraction of the mean square residual that a cross-saturation inductance leaves.
+// fraction of the mean square residual that the paper's model, and a cross-saturation inductance,
+// leave.
 constexpr double kDriveEffectAdvantage = 0.5;
 // ... in at least this share of the checks over those time constants.
 constexpr double kDriveEffectShare = 0.75;
+// After this many quiet checks in a row, the drive's effects are fitted only every so many checks.
+constexpr int kQuietDriveChecks = 20, kQuietDriveCheckEvery = 8;
+// A drive effect is significant beyond this many standard deviations (the diagnosis's threshold).
+constexpr double kDriveEffectSignificance = 5.0;
 }  // namespace
 
 void OnlineIdentifier::watchDriveModel() {
-  // Nothing about the drive declared: the paper's model first; where the data do not fit it and the
-  // fit diagnosis names a drive effect (an inverter error voltage, a voltage acting a sample late,
-  // or turned against the declared timing) twice running, the real drive's model: the inverter
-  // voltage and its shape, the voltage angle, the stationary hold, the current sensors' offsets
-  // and gains where the log has the angle, and the delay the data prefer (1 unless they name 0).
-  // Once in it, a whole-sample delay the data contradict is turned round once. Each change starts
-  // the statistics again (doc/algorithm.md section 8).
+  // Nothing about the drive declared: the paper's model first; where the window's fit improves
+  // twofold with the drive's effects added (an inverter error voltage with its shape, a voltage
+  // angle, a delay), one of them significant or the paper's model failing its fit check, in three
+  // quarters of the checks over six fitness windows, with the motor running, and where a
+  // cross-saturation inductance explains the misfit less well, the real drive's model: the inverter
+  // voltage and its shape, the voltage angle, the stationary hold, the current sensors' offsets and
+  // gains where the log has the angle, and the delay the data fit. Once in it, a whole-sample delay
+  // the diagnosis names is turned round once. Each change starts the statistics again
+  // (doc/algorithm.md section 8).
   if (!config_.automatic_drive_model || config_.magnetics.cross_saturation || !stats_.hasBlocks()) return;
   if (drive_model_switched_ && delay_flipped_) return;
-  // The plain fit first: where it fits (an ideal drive, every check) the diagnosis's dozen fits are
-  // not needed (they were a quarter of FBDAPSO's per-sample time on wc1_drive).
-  const ParameterVector from = box_.valid ? box_.centre : kGenericCentre;
-  const FitCheck plain = checkFit(stats_, config_.assessment, from, false, config_.inverter.estimate_voltage,
-                                  stats_.inverterVoltage(), false);
-  const FitCheck fit = plain.available && plain.consistent
-                           ? plain
-                           : checkFit(stats_, config_.assessment, from, true, config_.inverter.estimate_voltage,
-                                      stats_.inverterVoltage(), false);
+  // Before the switch: the window's plain fit, and one fit with the drive's effects (inverter
+  // voltage and shape, voltage angle, delay) added; evidence where they are significant and explain
+  // at least half the misfit. After it: the fit's diagnosis, for a whole-sample delay.
+  // (The full diagnosis at every check cost FBDAPSO a third more per sample on wc1_drive.)
+  const FitCheck fit = checkFit(stats_, config_.assessment, box_.valid ? box_.centre : kGenericCentre,
+                                drive_model_switched_, config_.inverter.estimate_voltage, stats_.inverterVoltage(), false);
+  if (!fit.available) return;
   const MisfitCause kind = fit.likely_cause_kind;
-  const bool drive_effect = fit.available && !fit.consistent &&
-                            (kind == MisfitCause::Inverter || kind == MisfitCause::Delay || kind == MisfitCause::VoltageAngle);
   // A drive effect stays; a change of the motor inside the window (a fault, a demagnetisation)
-  // misfits too, and the diagnosis may name a drive effect for it, but only until the window has
-  // forgotten the change. So the checks of the last kDriveEffectWindows forgetting time constants
-  // must name a drive effect in at least kDriveEffectShare of them (the diagnosis names another
-  // cause now and then, or none at a check where the misfit dips), this one included.
+  // misfits too, and a drive effect may fit part of it, but only until the window has forgotten the
+  // change. So the checks of the last kDriveEffectWindows forgetting time constants must show a
+  // drive effect in at least kDriveEffectShare of them, this one included.
   // Only while the motor runs with current: at a standstill the noise level of the window falls to
   // zero and whatever it still remembers of the run before misfits without end.
   const OperatingPoint& op = operating_point_;
   const bool running = std::hypot(op.i_d, op.i_q) > 10.0 * std::max(fit.noise_std_d, fit.noise_std_q) &&
                        std::abs(op.omega_e) * period_.nominal() > 1e-4;
-  bool evidence = drive_effect && running && (!drive_model_switched_ || kind == MisfitCause::Delay);
-  // A saturating machine misfits the paper's model too, and an inverter voltage with a turned,
-  // delayed voltage can mimic part of its cross-saturation: the drive's effects must explain the
-  // window clearly better (half the mean square residual) than a cross-saturation inductance does.
   const LinearBlockModel drive_effects =
       LinearBlockModel::withDelay(LinearBlockModel::withVoltageAngle(LinearBlockModel::inverterWithShape()));
+  const int delay_entry = drive_effects.size() - 1, angle_entry = drive_effects.size() - 2;
   BlockFit effects_fit;
-  if (evidence) {
+  bool evidence = false;
+  if (drive_model_switched_) {
+    evidence = running && !fit.consistent && kind == MisfitCause::Delay;
+  } else if (running && !(fit.consistent && quiet_drive_checks_ >= kQuietDriveChecks &&
+                           quiet_drive_checks_ % kQuietDriveCheckEvery != 0)) {
     const WindowSums window = stats_.window();
     Eigen::VectorXd start = Eigen::VectorXd::Zero(drive_effects.size());
     for (int p = 0; p < kParameterCount; ++p) start(p) = fit.optimum[p];
     effects_fit = BlockLeastSquares::fit(window, drive_effects, start, {}, config_.assessment.variance_inflation);
-    Eigen::VectorXd cross_start(6);
-    cross_start << fit.optimum[kRs], fit.optimum[kLd], fit.optimum[kLq], fit.optimum[kPsiF], fit.optimum[kLq], 0.0;
-    const BlockFit cross_fit = BlockLeastSquares::fit(
-        window, LinearBlockModel::crossSaturation(window.crossLinearisationCurrent()), cross_start, {},
-        config_.assessment.variance_inflation);
-    evidence = effects_fit.ok && (!cross_fit.ok || effects_fit.fitness() < kDriveEffectAdvantage * cross_fit.fitness());
+    const auto significant = [&](int j, double relevance) {
+      const double b = effects_fit.beta(j), sd = effects_fit.standard_deviation(j);
+      return std::isfinite(b) && std::abs(b) > relevance && std::abs(b) > kDriveEffectSignificance * sd;
+    };
+    // V relevant beyond 1 % of the resistive drop it would hide in R_s (as the diagnosis's test).
+    const double Tb = window.block_duration;
+    const double current_rms = std::sqrt(window.mean_d(kIntegralId, kIntegralId) + window.mean_q(kIntegralIq, kIntegralIq)) / Tb;
+    const bool inverter = effects_fit.ok && effects_fit.beta(4) > 0 &&
+                          significant(4, 0.01 * std::abs(effects_fit.beta(kRs)) * current_rms);
+    const bool timing = effects_fit.ok && (significant(delay_entry, 0.2) || significant(angle_entry, 0.2));
+    // (V's wide share makes V itself undetermined in some windows: where the plain fit fails, its
+    // residual halved by the drive's effects is evidence too.)
+    evidence = effects_fit.ok && (inverter || timing || !fit.consistent) &&
+               effects_fit.fitness() < kDriveEffectAdvantage * fit.optimum_fitness;
+    if (evidence) {
+      // A saturating machine misfits the paper's model too, and an inverter voltage with a turned,
+      // delayed voltage can mimic part of its cross-saturation: the drive's effects must explain
+      // the window clearly better (half the mean square residual) than a cross-saturation
+      // inductance does.
+      Eigen::VectorXd cross_start(6);
+      cross_start << fit.optimum[kRs], fit.optimum[kLd], fit.optimum[kLq], fit.optimum[kPsiF], fit.optimum[kLq], 0.0;
+      const BlockFit cross_fit = BlockLeastSquares::fit(
+          window, LinearBlockModel::crossSaturation(window.crossLinearisationCurrent()), cross_start, {},
+          config_.assessment.variance_inflation);
+      evidence = !cross_fit.ok || effects_fit.fitness() < kDriveEffectAdvantage * cross_fit.fitness();
+    }
   }
+  // A drive whose data have fitted the paper's model for kQuietDriveChecks checks in a row is looked
+  // at closely only every kQuietDriveCheckEvery-th check while it keeps fitting (the watch's fits
+  // were a tenth of FBDAPSO's per-sample cost on wc1_drive).
+  quiet_drive_checks_ = fit.consistent && !evidence ? quiet_drive_checks_ + 1 : 0;
   const double span = kDriveEffectWindows * stats_.forgettingTimeConstant();
   if (drive_checks_.empty() && !evidence) return;  // nothing to weigh yet
   drive_checks_.emplace_back(last_t_, evidence);
@@ -140,16 +167,11 @@ void OnlineIdentifier::watchDriveModel() {
     // The delay: where the diagnosis named it, its value; else the window's fit with the inverter
     // voltage, the voltage angle and a free delay all at once (a log of the applied voltage fits 0,
     // a log of the reference most often 1).
+    // Delay 0 only where the fit puts it below half a sample by three standard deviations: a fast
+    // low-inductance drive left it between (0.18 +- 0.13 on robot_joint_realistic, delay 1).
     int delay = 1;
-    if (kind == MisfitCause::Delay) {
-      delay = delayFrom(w.voltage_delay_samples);
-    } else {
-      // Delay 0 only where the fit puts it below half a sample by three standard deviations: a
-      // fast low-inductance drive left it between (0.18 +- 0.13 on robot_joint_realistic, delay 1).
-      const double d = effects_fit.beta(drive_effects.size() - 1);
-      const double d_std = effects_fit.standard_deviation(drive_effects.size() - 1);
-      if (std::isfinite(d) && std::isfinite(d_std) && d + 3.0 * d_std < 0.5) delay = w.voltage_delay_samples;
-    }
+    const double d = effects_fit.beta(delay_entry), d_std = effects_fit.standard_deviation(delay_entry);
+    if (std::isfinite(d) && std::isfinite(d_std) && d + 3.0 * d_std < 0.5) delay = w.voltage_delay_samples;
     w.voltage_delay_samples = delay;
     w.stationary_hold = true;
     w.estimate_voltage_angle = true;
@@ -190,6 +212,8 @@ void OnlineIdentifier::reset() {
   drive_model_note_.clear();
   delay_flipped_ = false;
   drive_checks_.clear();
+  quiet_drive_checks_ = 0;
+  last_drive_watch_t_ = -std::numeric_limits<double>::infinity();
   stats_.reset();
   period_.reset();
   held_.clear();
@@ -306,9 +330,12 @@ SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status
   }
   // The drive model, where nothing about the drive was declared: watched at the same pace (before
   // the box exists too: a real drive's data may never give the paper's model a scale).
-  if (config_.automatic_drive_model && new_block &&
-      stats_.blocks() % static_cast<std::uint64_t>(10 * config_.swarm.reset_iterations) == 0)
+  // Every 500 samples, and at most every half forgetting time constant (at 1 MHz, every 25 000).
+  if (config_.automatic_drive_model && new_block && !(last_t_ - last_drive_watch_t_ < 0.5 * stats_.forgettingTimeConstant()) &&
+      stats_.blocks() % static_cast<std::uint64_t>(10 * config_.swarm.reset_iterations) == 0) {
+    last_drive_watch_t_ = last_t_;
     watchDriveModel();
+  }
   // A declared cold start: the thermal references are learnt from the data (see estimate()), whether or not
   // anybody asks for an estimate then (checked once per block length until both are learnt).
   const ThermalSettings& th = config_.thermal;
