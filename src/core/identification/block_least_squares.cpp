@@ -140,11 +140,8 @@ const LinearBlockModel& LinearBlockModel::speedScale() {
 
 const LinearBlockModel& LinearBlockModel::delay() {
   static const LinearBlockModel model = [] {
-    LinearBlockModel m = base(1);
+    LinearBlockModel m = withDelay(paper());
     m.name = "delay";
-    m.parameter_names.push_back("voltage_delay");
-    m.G_d(kIntegralUdStep, 4) = 1.0;
-    m.G_q(kIntegralUqStep, 4) = 1.0;
     return m;
   }();
   return model;

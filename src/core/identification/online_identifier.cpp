@@ -83,8 +83,9 @@ void OnlineIdentifier::watchDriveModel() {
   if (!config_.automatic_drive_model || config_.magnetics.cross_saturation || !stats_.hasBlocks()) return;
   if (drive_model_switched_ && delay_flipped_) return;
   // Before the switch: the window's plain fit, and one fit with the drive's effects (inverter
-  // voltage and shape, voltage angle, delay) added; evidence where they are significant and explain
-  // at least half the misfit. After it: the fit's diagnosis, for a whole-sample delay.
+  // voltage and shape, voltage angle, delay) added; evidence where one of them is significant or the
+  // plain fit fails, and they leave at most half its residual. After it: the fit's diagnosis, for a
+  // whole-sample delay.
   // (The full diagnosis at every check cost FBDAPSO a third more per sample on wc1_drive.)
   const FitCheck fit = checkFit(stats_, config_.assessment, box_.valid ? box_.centre : kGenericCentre,
                                 drive_model_switched_, config_.inverter.estimate_voltage, stats_.inverterVoltage(), false);
@@ -140,8 +141,9 @@ void OnlineIdentifier::watchDriveModel() {
     }
   }
   // A drive whose data have fitted the paper's model for kQuietDriveChecks checks in a row is looked
-  // at closely only every kQuietDriveCheckEvery-th check while it keeps fitting (the watch's fits
-  // were a tenth of FBDAPSO's per-sample cost on wc1_drive).
+  // at closely only every kQuietDriveCheckEvery-th check while it keeps fitting (on wc1_drive's
+  // 0.5 s recording, all before this back-off, the watch's fits were about a seventh of the
+  // identifier's instructions by callgrind).
   quiet_drive_checks_ = fit.consistent && !evidence ? quiet_drive_checks_ + 1 : 0;
   const double span = kDriveEffectWindows * stats_.forgettingTimeConstant();
   if (drive_checks_.empty() && !evidence) return;  // nothing to weigh yet
@@ -164,11 +166,10 @@ void OnlineIdentifier::watchDriveModel() {
   };
   char buf[240];
   if (!drive_model_switched_) {
-    // The delay: where the diagnosis named it, its value; else the window's fit with the inverter
-    // voltage, the voltage angle and a free delay all at once (a log of the applied voltage fits 0,
-    // a log of the reference most often 1).
-    // Delay 0 only where the fit puts it below half a sample by three standard deviations: a fast
-    // low-inductance drive left it between (0.18 +- 0.13 on robot_joint_realistic, delay 1).
+    // The delay from the fit with the drive's effects (a log of the applied voltage fits 0, a log of
+    // the reference most often 1): 0 only where it lies below half a sample by three standard
+    // deviations (a fast low-inductance drive left it between: 0.18 +- 0.13 on robot_joint_realistic,
+    // whose delay is 1).
     int delay = 1;
     const double d = effects_fit.beta(delay_entry), d_std = effects_fit.standard_deviation(delay_entry);
     if (std::isfinite(d) && std::isfinite(d_std) && d + 3.0 * d_std < 0.5) delay = w.voltage_delay_samples;
