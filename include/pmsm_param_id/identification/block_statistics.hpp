@@ -205,11 +205,11 @@ class BlockStatistics {
       const InverterMix mix = inverterMix();
       const double wd8[8] = {wd[0], wd[1], wd[2], wd[3], mix.narrow * inv_Ld, 0.0, mix.wide * inv_Ld, mix.bus * inv_Ld};
       const double wq9[9] = {wq[0], wq[1], wq[2], wq[3], wq[4], mix.narrow * inv_Lq, 0.0, mix.wide * inv_Lq, mix.bus * inv_Lq};
-      return std::max(0.0, 2.0 * upperForm<9>(Sq, wq9, upperForm<8>(Sd, wd8, 0.0)) / stored_weight_);
+      return std::max(0.0, 2.0 * upperForm<9>(Sq, wq9, upperForm<8>(Sd, wd8, 0.0)) / fitnessWeight());
     }
     const double f = V != 0.0 ? upperForm<6>(Sq, wq, upperForm<5>(Sd, wd, 0.0))
                               : upperForm<5>(Sq, wq, upperForm<4>(Sd, wd, 0.0));
-    return std::max(0.0, 2.0 * f / stored_weight_);
+    return std::max(0.0, 2.0 * f / fitnessWeight());
   }
   /// fitness() at n points in one call (the swarm evaluates every particle's move at once): the same
   /// values, each computed as fitness() computes it, without a call per point.
@@ -348,7 +348,11 @@ class BlockStatistics {
     const ProductD* d = &S_d_;
     const ProductQ* q = &S_q_;
     if (settings_.sensor_offsets) {
-      refreshProjection();
+      // For the swarm's fitness the projection is refreshed once per block length of new data (at
+      // most M samples old, of a window of hundreds); the exact fit and the assessment read it
+      // fresh (meanProductD). Its pseudo-inverse was half of a real-drive sample's cost.
+      if (projection_stale_ && !(projected_weight_ > 0 && blocks_ - projected_blocks_ < static_cast<std::uint64_t>(block_samples_)))
+        updateOffsetProjection();
       d = &P_d_;
       q = &P_q_;
     }
@@ -357,6 +361,8 @@ class BlockStatistics {
     return {angle_d_, angle_q_};
   }
   void updateAngleSums(const ProductD& d, const ProductQ& q) const;
+  /// The stored weight of the sums fitnessSums() returned (the projection's, when it is read).
+  double fitnessWeight() const { return settings_.sensor_offsets ? projected_weight_ : stored_weight_; }
 
   WindowSettings settings_;
   int block_samples_ = 0;
@@ -378,6 +384,8 @@ class BlockStatistics {
   mutable ProductD P_d_ = ProductD::Zero();
   mutable ProductQ P_q_ = ProductQ::Zero();
   mutable bool projection_stale_ = true;
+  mutable std::uint64_t projected_blocks_ = 0;  // blocks_ when the projection was last computed
+  mutable double projected_weight_ = 0.0;       // stored_weight_ then
   OffsetProduct long_N_ = OffsetProduct::Zero();
   OffsetCrossD long_C_d_ = OffsetCrossD::Zero();
   OffsetCrossQ long_C_q_ = OffsetCrossQ::Zero();

@@ -44,6 +44,8 @@ void BlockStatistics::reset() {
   P_d_.setZero();
   P_q_.setZero();
   projection_stale_ = true;
+  projected_blocks_ = 0;
+  projected_weight_ = 0.0;
   angle_sums_stale_ = true;
   long_N_.setZero();
   long_C_d_.setZero();
@@ -702,6 +704,9 @@ void BlockStatistics::updateOffsetProjection() const {
   P_d_ = projectOffsets(ProductD(S_d_.selfadjointView<Eigen::Upper>()), C_d_, pinv);
   P_q_ = projectOffsets(ProductQ(S_q_.selfadjointView<Eigen::Upper>()), C_q_, pinv);
   projection_stale_ = false;
+  projected_blocks_ = blocks_;
+  projected_weight_ = stored_weight_;
+  angle_sums_stale_ = true;
 }
 
 WindowSums BlockStatistics::window() const {
@@ -824,7 +829,7 @@ double BlockStatistics::fitnessWithCrossSaturation(const ParameterVector& p) con
   wq[kIntegralOmegaIqInQ] = Ldq * inv_Lq;
   const auto [Sd, Sq] = fitnessSums();
   const double f = upperForm<kBlockSizeQ>(Sq, wq.data(), upperForm<kBlockSizeD>(Sd, wd.data(), 0.0));
-  return std::max(0.0, 2.0 * f / stored_weight_);
+  return std::max(0.0, 2.0 * f / fitnessWeight());
 }
 
 }  // namespace pmsm_param_id
