@@ -58,7 +58,7 @@ namespace {
 // How long a drive effect's misfit must last before the drive model changes, in forgetting time
 // constants of the fitness window: a motor's step change has left the window to e^-6 = 0.25 %.
 constexpr double kDriveEffectWindows = 6.0;
-// The drive's effects (inverter voltage and shape, voltage angle, delay) must leave at most this
+// The drive's effects (inverter voltage, voltage angle, delay) must leave at most this
 // fraction of the mean square residual that the paper's model, and a cross-saturation inductance,
 // leave.
 constexpr double kDriveEffectAdvantage = 0.5;
@@ -72,7 +72,7 @@ constexpr double kDriveEffectSignificance = 5.0;
 
 void OnlineIdentifier::watchDriveModel() {
   // Nothing about the drive declared: the paper's model first; where the window's fit improves
-  // twofold with the drive's effects added (an inverter error voltage with its shape, a voltage
+  // twofold with the drive's effects added (an inverter error voltage, a voltage
   // angle, a delay), one of them significant or the paper's model failing its fit check, in three
   // quarters of the checks over six fitness windows, with the motor running, and where a
   // cross-saturation inductance explains the misfit less well, the real drive's model: the inverter
@@ -83,7 +83,8 @@ void OnlineIdentifier::watchDriveModel() {
   if (!config_.automatic_drive_model || config_.magnetics.cross_saturation || !stats_.hasBlocks()) return;
   if (drive_model_switched_ && delay_flipped_) return;
   // Before the switch: the window's plain fit, and one fit with the drive's effects (inverter
-  // voltage and shape, voltage angle, delay) added; evidence where one of them is significant or the
+  // voltage, voltage angle, delay; without the shape's second width, nearly collinear with V: a
+  // third less of the watch's instructions by callgrind) added; evidence where one of them is significant or the
   // plain fit fails, and they leave at most half its residual. After it: the fit's diagnosis, for a
   // whole-sample delay.
   // (The full diagnosis at every check cost FBDAPSO a third more per sample on wc1_drive.)
@@ -101,7 +102,7 @@ void OnlineIdentifier::watchDriveModel() {
   const bool running = std::hypot(op.i_d, op.i_q) > 10.0 * std::max(fit.noise_std_d, fit.noise_std_q) &&
                        std::abs(op.omega_e) * period_.nominal() > 1e-4;
   const LinearBlockModel drive_effects =
-      LinearBlockModel::withDelay(LinearBlockModel::withVoltageAngle(LinearBlockModel::inverterWithShape()));
+      LinearBlockModel::withDelay(LinearBlockModel::withVoltageAngle(LinearBlockModel::inverter()));
   const int delay_entry = drive_effects.size() - 1, angle_entry = drive_effects.size() - 2;
   BlockFit effects_fit;
   bool evidence = false;
