@@ -41,6 +41,10 @@ struct WindowSettings {
   double block_length = 0.0;               ///< one fitness block [s]; 0 = max(5 ms, 10 sampling periods)
   double forgetting_time_constant = 0.0;   ///< forgetting of the fitness window [s]; 0 = max(50 ms, 500 periods)
   double long_time_constant = 10.0;        ///< forgetting of the long check window [s] (unit checks)
+  /// The long check window keeps, besides the differences of consecutive blocks, the differences of
+  /// blocks this far apart [s]: a load step or a speed change then enters through every pair that
+  /// straddles it, not one, while a thermal drift (minutes) still cancels. 0 = consecutive only.
+  double long_difference_spacing = 0.2;
   bool stationary_hold = false;            ///< the inverter holds the voltage in the stator frame
   double inverter_zero_crossing_current = 0.0;  ///< the inverter error passes zero as tanh(i / this) [A]; 0 = sign
   bool inverter_wide_shape = false;  ///< keep the twice-the-width shape column (the inverter model is on)
@@ -292,7 +296,8 @@ class BlockStatistics {
   bool hasDifferences() const { return difference_weight_ > 0; }
   /// The fitness window (overlapping blocks, forgetting_time_constant).
   WindowSums window() const;
-  /// The long check window: differences of consecutive non-overlapping blocks, long_time_constant.
+  /// The long check window: differences of non-overlapping blocks (consecutive, and
+  /// long_difference_spacing apart), long_time_constant.
   WindowSums longWindow() const;
   /// The logged speed against the logged angle's rate over the long window, sum |omega_e| dt /
   /// sum sign(omega_e) dtheta_e (1 when the speed's unit is right); NaN without the angle or before
@@ -412,6 +417,15 @@ class BlockStatistics {
   double long_weight_ = 0.0, long_lambda_ = 1.0;
   BlockD long_last_d_ = BlockD::Zero();
   BlockQ long_last_q_ = BlockQ::Zero();
+  // The last long_spacing_blocks_ long-window blocks of this stretch (oldest first), for the spaced differences.
+  struct LongBlock {
+    BlockD d;
+    BlockQ q;
+    OffsetBlock n;
+  };
+  std::vector<LongBlock> long_history_;
+  std::size_t long_history_head_ = 0;  // the oldest entry once the ring is full
+  int long_spacing_blocks_ = 0;        // 0: consecutive differences only
   bool have_long_block_ = false;
   std::uint64_t blocks_since_long_block_ = 0;  // blocks of this stretch since its last long-window block (< M)
   std::size_t blocks_since_rebase_ = 0;        // blocks since the running integrals were last rebased (< M + 1)

@@ -1,5 +1,6 @@
 #include "pmsm_param_id/identification/assessment.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -239,6 +240,49 @@ Misfit misspecification(const WindowSums& window, const AssessmentSettings& a, c
 }
 }  // namespace
 
+namespace {
+/// The fit of the fitness window and the long window together, each weighted by its own noise:
+/// sums normalised to the fitness window's noise, so that the information is the sum of the two
+/// windows'. Not ok where either window's residual at the joint optimum rises above its own
+/// optimum's by more than n + 3 sqrt(2 n) (chi-square, n parameters): the windows then disagree
+/// (a saturating machine's differential and apparent inductances, a drift) and nothing is combined.
+BlockFit jointFit(const WindowSums& window, const BlockFit& own, const WindowSums& long_window,
+                  const LinearBlockModel& model, double variance_inflation) {
+  BlockFit none;
+  none.ok = false;
+  if (!own.ok || !long_window.hasBlocks() || !(own.noise_variance_d > 0) || !(own.noise_variance_q > 0)) return none;
+  const BlockFit long_own = BlockLeastSquares::fit(long_window, model, own.beta, {}, variance_inflation);
+  if (!long_own.ok) return none;
+  const double w1 = window.weight, w2 = long_window.weight;
+  WindowSums joint = window;
+  const double rd = own.noise_variance_d / long_window.noise_variance_d;
+  const double rq = own.noise_variance_q / long_window.noise_variance_q;
+  joint.mean_d = (w1 * window.mean_d + w2 * rd * long_window.mean_d) / (w1 + w2);
+  joint.mean_q = (w1 * window.mean_q + w2 * rq * long_window.mean_q) / (w1 + w2);
+  joint.weight = w1 + w2;
+  joint.has_differences = false;
+  joint.noise_variance_d = own.noise_variance_d;
+  joint.noise_variance_q = own.noise_variance_q;
+  BlockFit f = BlockLeastSquares::fit(joint, model, own.beta, {}, variance_inflation);
+  if (!f.ok) return none;
+  // Each window's rise in units of the variance its own uncertainties are stated with (the noise,
+  // or the residual the fit check accepted where that is larger).
+  const auto rise = [&](const WindowSums& w, const BlockFit& alone, double noise_d, double noise_q) {
+    double ms_d = 0, ms_q = 0, dd = 0, dq = 0, ms0_d = 0, ms0_q = 0;
+    BlockLeastSquares::residuals(w, model, f.beta, ms_d, ms_q, dd, dq);
+    BlockLeastSquares::residuals(w, model, alone.beta, ms0_d, ms0_q, dd, dq);
+    const double floor_d = std::max({noise_d, ms0_d, w.min_noise_variance}), floor_q = std::max({noise_q, ms0_q, w.min_noise_variance});
+    return w.weight * ((ms_d - ms0_d) / floor_d + (ms_q - ms0_q) / floor_q);
+  };
+  const double n = model.size();
+  const double limit = n + 3.0 * std::sqrt(2.0 * n);
+  if (!(rise(window, own, own.noise_variance_d, own.noise_variance_q) <= limit) ||
+      !(rise(long_window, long_own, long_window.noise_variance_d, long_window.noise_variance_q) <= limit))
+    return none;
+  return f;
+}
+}  // namespace
+
 FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, const ParameterVector& start,
                   bool diagnose_misfit, bool estimate_inverter, double inverter_start, bool estimate_cross) {
   FitCheck out;
@@ -293,7 +337,14 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
       long_window.noise_variance_d = 2.0 * free_fit.noise_variance_d;  // a difference of two independent blocks
       long_window.noise_variance_q = 2.0 * free_fit.noise_variance_q;
       long_window.min_noise_variance = 2.0 * floor2;
-      const BlockFit long_fit = BlockLeastSquares::fit(long_window, model, free_fit.beta, {}, a.variance_inflation);
+      // The two windows see the drive's constants differently: the fitness window holds them
+      // absolutely (the angle as a constant d-axis voltage a omega_e^2 T_s psi_f, V as a constant
+      // drop along the current) but at one operating point, where they are collinear with L_q and
+      // R_s; the long window's differences cancel constants but hold the steps, which give L_q and
+      // R_s. Together they separate them: the joint fit, where the two windows agree on one set of
+      // parameters (each one's residual rises by no more than chance allows), gives the constants.
+      const BlockFit joint_fit = jointFit(window, free_fit, long_window, model, a.variance_inflation);
+      const BlockFit& long_fit = joint_fit;
       const auto stdOf = [](const BlockFit& fit, int j) {
         return fit.ok && fit.determined[static_cast<std::size_t>(j)] && std::isfinite(fit.beta(j)) ? fit.standard_deviation(j)
                                                                                                   : std::numeric_limits<double>::infinity();

@@ -37,6 +37,8 @@ void BlockStatistics::reset() {
   long_q_.setZero();
   long_weight_ = 0.0;
   have_long_block_ = false;
+  long_history_.clear();
+  long_history_head_ = 0;
   blocks_since_long_block_ = 0;
   N_.setZero();
   C_d_.setZero();
@@ -70,6 +72,8 @@ void BlockStatistics::resetLongWindow() {
   long_C_q_.setZero();
   long_weight_ = 0.0;
   have_long_block_ = false;
+  long_history_.clear();
+  long_history_head_ = 0;
 }
 
 void BlockStatistics::configure(double nominal_period) {
@@ -85,6 +89,11 @@ void BlockStatistics::configure(double nominal_period) {
   block_samples_ = std::max(1, static_cast<int>(std::lround(block / nominal_period)));
   lambda_ = std::exp(-nominal_period / forgetting_time_constant_);
   long_lambda_ = std::exp(-block_samples_ * nominal_period / settings_.long_time_constant);
+  const double long_block = block_samples_ * nominal_period;  // one long-window block every block length [s]
+  long_spacing_blocks_ = settings_.long_difference_spacing > 0
+                             ? static_cast<int>(std::lround(settings_.long_difference_spacing / long_block))
+                             : 0;
+  if (long_spacing_blocks_ < 2) long_spacing_blocks_ = 0;  // one block apart is the consecutive difference
   ring_.resize(static_cast<std::size_t>(block_samples_) + 1);
 }
 
@@ -92,6 +101,8 @@ void BlockStatistics::breakContinuity() {
   count_ = 0;
   have_previous_block_ = false;
   have_long_block_ = false;
+  long_history_.clear();
+  long_history_head_ = 0;
   blocks_since_long_block_ = 0;
 }
 
@@ -589,20 +600,44 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
   angle_sums_stale_ = true;
   // Every M-th block of a stretch: consecutive non-overlapping blocks, and the long window keeps
   // their differences. Differencing removes what varies slowly (a drifting R_s or psi_f would
-  // otherwise bias a constant-parameter fit over seconds) and keeps the steps.
+  // otherwise bias a constant-parameter fit over seconds) and keeps the steps. The differences of
+  // blocks long_difference_spacing apart join them: a step then enters through every pair that
+  // straddles it. A block takes part in up to four differences, so each difference counts half
+  // (the noise of the pairs that share a block is correlated; half keeps the information at or
+  // below what the differences hold).
   if (++blocks_since_long_block_ == static_cast<std::uint64_t>(block_samples_)) {
     blocks_since_long_block_ = 0;
-    if (have_long_block_) {
-      const BlockD dd = zd - long_last_d_;
-      const BlockQ dq = zq - long_last_q_;
-      long_d_ = long_lambda_ * long_d_ + dd * dd.transpose();
-      long_q_ = long_lambda_ * long_q_ + dq * dq.transpose();
-      long_weight_ = long_lambda_ * long_weight_ + 1.0;
+    const double share = long_spacing_blocks_ > 0 ? 0.5 : 1.0;
+    const auto addDifference = [&](const BlockD& dd, const BlockQ& dq, const OffsetBlock& dn) {
+      long_d_.noalias() += share * dd * dd.transpose();
+      long_q_.noalias() += share * dq * dq.transpose();
       if (settings_.sensor_offsets) {
-        const OffsetBlock dn = zn - long_last_n_;
-        long_N_ = long_lambda_ * long_N_ + dn * dn.transpose();
-        long_C_d_ = long_lambda_ * long_C_d_ + dd * dn.transpose();
-        long_C_q_ = long_lambda_ * long_C_q_ + dq * dn.transpose();
+        long_N_.noalias() += share * dn * dn.transpose();
+        long_C_d_.noalias() += share * dd * dn.transpose();
+        long_C_q_.noalias() += share * dq * dn.transpose();
+      }
+    };
+    if (have_long_block_) {
+      long_d_ *= long_lambda_;
+      long_q_ *= long_lambda_;
+      if (settings_.sensor_offsets) {
+        long_N_ *= long_lambda_;
+        long_C_d_ *= long_lambda_;
+        long_C_q_ *= long_lambda_;
+      }
+      long_weight_ = long_lambda_ * long_weight_ + 1.0;
+      addDifference(zd - long_last_d_, zq - long_last_q_, zn - long_last_n_);
+      if (long_spacing_blocks_ > 0 && long_history_.size() == static_cast<std::size_t>(long_spacing_blocks_)) {
+        const LongBlock& old = long_history_[long_history_head_];
+        addDifference(zd - old.d, zq - old.q, zn - old.n);
+      }
+    }
+    if (long_spacing_blocks_ > 0) {
+      if (long_history_.size() < static_cast<std::size_t>(long_spacing_blocks_)) {
+        long_history_.push_back({zd, zq, zn});
+      } else {
+        long_history_[long_history_head_] = {zd, zq, zn};
+        long_history_head_ = (long_history_head_ + 1) % long_history_.size();
       }
     }
     long_last_d_ = zd;

@@ -54,6 +54,8 @@ void validate(const IdentifierConfig& c, const std::string& source) {
   if (c.window.forgetting_time_constant > 0 && c.window.block_length > 0 &&
       !(c.window.forgetting_time_constant > c.window.block_length))
     fail("window.forgetting_time_constant", "must be longer than window.block_length");
+  if (!(c.window.long_difference_spacing >= 0) || !std::isfinite(c.window.long_difference_spacing))
+    fail("window.long_difference_spacing", "must be a finite number >= 0 (0 = consecutive blocks only)");
   if (!(c.window.long_time_constant >= c.window.forgetting_time_constant))
     fail("window.long_time_constant", "must be at least window.forgetting_time_constant");
   if (c.window.voltage_delay_samples < 0 || c.window.voltage_delay_samples > 1)
@@ -94,6 +96,7 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   c.window.block_length = y.number("window.block_length", c.window.block_length);
   c.window.forgetting_time_constant = y.number("window.forgetting_time_constant", c.window.forgetting_time_constant);
   c.window.long_time_constant = y.positive("window.long_time_constant", c.window.long_time_constant);
+  c.window.long_difference_spacing = y.number("window.long_difference_spacing", c.window.long_difference_spacing);
   c.swarm.particles = static_cast<int>(y.integer("swarm.particles", c.swarm.particles, 2, 100000));
   c.swarm.c1 = y.number("swarm.c1", c.swarm.c1);
   c.swarm.c2 = y.number("swarm.c2", c.swarm.c2);
