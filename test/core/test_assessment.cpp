@@ -1364,3 +1364,28 @@ TEST(DriveModel, TheDataChooseTheDelayOfTheLogsConvention) {
     expectIdentifiedWithinStated(e, data.back().truth, label);
   }
 }
+
+TEST(DriveModel, AShortLogsStepsBeforeTheSwitchStillSeparateTheDrivesConstants) {
+  // The robot joint behind its inverter, a 1 s log: its load steps (0.25, 0.45 s) and the start-up
+  // come before the identifier has the evidence for the real drive's model (0.33 s). The change of
+  // model replays the recent samples into the new statistics, so the long window keeps them, and
+  // the drive's angle and inverter voltage are separated from L_q and R_s: both identified (with the
+  // statistics started again at the change, neither was, in any of 10 seeds).
+  for (std::uint64_t seed : {2u, 3u, 4u}) {
+    Scenario s = test_helpers::scenario("robot_joint_realistic.yaml");
+    s.seed = seed;
+    const auto data = test_helpers::run(s);
+    const Estimate e = identify(samplesOf(data), "wls", IdentifierConfig{});
+    const std::string label = "seed " + std::to_string(seed);
+    EXPECT_NE(e.drive_model.find("real drive, from the data"), std::string::npos) << label << " " << e.drive_model;
+    EXPECT_TRUE(e.fit.voltage_angle_from_long_window) << label;
+    EXPECT_TRUE(e.identifiable[kRs]) << label << " " << e.reason[kRs];
+    EXPECT_TRUE(e.identifiable[kLq]) << label << " " << e.reason[kLq];
+    for (int p = 0; p < kParameterCount; ++p)
+      if (e.identifiable[p])
+        EXPECT_LT(std::abs(e.parameters[p] / data.back().truth[p] - 1.0), 0.01) << label << " " << parameterNames()[p];
+    // R_s within what it states (L_q: see doc/results.md, it sits up to 1.2 times its stated
+    // uncertainty off in a few seeds of this drive).
+    EXPECT_LT(std::abs(e.parameters[kRs] / data.back().truth[kRs] - 1.0), e.relative_uncertainty[kRs]) << label;
+  }
+}

@@ -169,7 +169,18 @@ class OnlineIdentifier {
   double last_drive_watch_t_ = -std::numeric_limits<double>::infinity();  // [s]
   int quiet_drive_checks_ = 0;  // checks in a row where the paper's model fitted and no drive effect showed
   std::string drive_model_note_;
+  // While the drive model may still change: the last samples used (and whether the stream broke
+  // before each), replayed into the new model's statistics at a change, so that a short log's load
+  // steps and speed changes before the change still reach the long window.
+  struct RecentSample {
+    Sample sample;
+    bool continuity_broken = false;
+  };
+  std::deque<RecentSample> recent_;
 };
+
+/// Samples kept for a drive-model change (2 s at 10 kHz; about 1.4 MB per identifier).
+constexpr std::size_t kDriveModelReplaySamples = 20000;
 
 /// Builds the identifier named by config.method. ConfigError on an unknown method or bad values.
 std::unique_ptr<OnlineIdentifier> makeIdentifier(const IdentifierConfig& config);

@@ -276,9 +276,14 @@ BlockFit jointFit(const WindowSums& window, const BlockFit& own, const WindowSum
   };
   const double n = model.size();
   const double limit = n + 3.0 * std::sqrt(2.0 * n);
-  if (!(rise(window, own, own.noise_variance_d, own.noise_variance_q) <= limit) ||
-      !(rise(long_window, long_own, long_window.noise_variance_d, long_window.noise_variance_q) <= limit))
-    return none;
+  const double rise_window = rise(window, own, own.noise_variance_d, own.noise_variance_q);
+  const double rise_long = rise(long_window, long_own, long_window.noise_variance_d, long_window.noise_variance_q);
+  if (!(rise_window <= limit) || !(rise_long <= limit)) return none;
+  // Agreeing within chance still leaves some tension: the two rises together are a chi-square of n
+  // degrees of freedom where the windows share one set of parameters; beyond n, the joint fit's
+  // standard deviations grow by the square root of their ratio (Birge's ratio).
+  const double birge = std::sqrt(std::max(1.0, (rise_window + rise_long) / n));
+  f.standard_deviation *= birge;
   return f;
 }
 }  // namespace
