@@ -77,7 +77,15 @@ int main(int argc, char** argv) {
   perf->add_option("--drive-scenario", drive_scenario,
                    "a real drive's recording: FBDAPSO's cost there against the first (e.g. industrial_pwm.yaml)");
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help prints and exits 0; any other command-line error is a user error: exit status 2
+    // (CLI11's own codes, 100-120, are not the README's).
+    if (e.get_exit_code() == static_cast<int>(CLI::ExitCodes::Success)) return app.exit(e);
+    std::fprintf(stderr, "error: %s\nRun with --help for more information.\n", e.what());
+    return 2;
+  }
   try {
     if (*sim) return tool::runSimulate(scenario, csv, seed, duration);
     if (*ident) {

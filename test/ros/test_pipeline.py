@@ -214,6 +214,18 @@ class Tools(unittest.TestCase):
         self.assertEqual(r.returncode, 2)
         self.assertIn("only 10 usable samples: fewer than one fitness block", r.stderr)
 
+    def test_command_line_errors_exit_2_and_help_exits_0(self):
+        for args, text in ((["identify"], "--csv is required"), (["identify", "--csv", "x.csv", "--bogus"], "--bogus"),
+                           (["bench", "--scenario", "s.yaml", "--reference", "r.csv", "--seeds", "many"], "--seeds"),
+                           ([], "A subcommand is required")):
+            r = tool("pmsm_tool", *args)
+            self.assertEqual(r.returncode, 2, (args, r.stderr))
+            self.assertIn(text, r.stderr)
+            self.assertEqual(len([l for l in r.stderr.splitlines() if l.startswith("error:")]), 1, r.stderr)
+        r = tool("pmsm_tool", "identify", "--help")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("--csv", r.stdout)
+
 
 class BadParameters(unittest.TestCase):
     def test_unknown_method_stops_the_node_with_one_line_naming_the_parameter(self):
