@@ -5,6 +5,7 @@
 #include <fstream>
 #include <sstream>
 #include <thread>
+#include <mutex>
 #include <atomic>
 #include <chrono>
 
@@ -22,11 +23,20 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
   const std::vector<std::string> methods = methodsFrom(methods_arg);
   if (seeds < 1) throw ConfigError("--seeds: must be >= 1");
 
+  // Paper condition: the scenario file's base name up to the first '_' or '.' (wc1, wc2).
+  const std::string stem = scenario_path.substr(scenario_path.find_last_of('/') + 1);
+  const std::string condition = stem.substr(0, stem.find_first_of("_."));
+  const auto paper = readPaperTable(reference, condition);  // before the runs: a bad path fails at once
+
   std::vector<std::vector<RunResult>> results(methods.size(), std::vector<RunResult>(static_cast<std::size_t>(seeds)));
   std::vector<ReferenceOptimum> references(static_cast<std::size_t>(seeds));
-  std::atomic<int> next{0};
+  std::atomic<int> next{0}, done{0};
+  std::mutex progress_mutex;
+  const auto started = std::chrono::steady_clock::now();
+  auto last_report = started;
+  InterruptGuard interrupt;  // Ctrl-C: the seeds under way finish, the tables cover the finished ones
   auto worker = [&]() {
-    for (int s; (s = next++) < seeds;) {
+    for (int s; !interrupt.requested() && (s = next++) < seeds;) {
       Scenario sc = base;
       sc.seed = base.seed + static_cast<std::uint64_t>(s);
       const std::vector<SimulatedSample> data = simulate(sc);
@@ -43,33 +53,50 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
           r.along.map_roundtrip = currentDifference(data, simulate(withFluxMap(sc, r.along.map_table))).relative_rms;
         }
       }
+      // Progress on stderr: seeds done and the time left, at most once a second (and at the end).
+      const int finished = ++done;
+      const std::lock_guard<std::mutex> lock(progress_mutex);
+      const auto now = std::chrono::steady_clock::now();
+      if (finished == seeds || now - last_report >= std::chrono::seconds(1)) {
+        last_report = now;
+        const double elapsed = std::chrono::duration<double>(now - started).count();
+        std::fprintf(stderr, "[bench %s] %d of %d seeds done, about %.0f s left\n", base.name.c_str(), finished, seeds,
+                     elapsed / finished * (seeds - finished));
+      }
     }
   };
   std::vector<std::thread> pool;
   for (int i = 0; i < std::max(1, threads); ++i) pool.emplace_back(worker);
   for (auto& t : pool) t.join();
-
-  // Paper condition: the scenario file's base name up to the first '_' or '.' (wc1, wc2).
-  std::string stem = scenario_path.substr(scenario_path.find_last_of('/') + 1);
-  const std::string condition = stem.substr(0, stem.find_first_of("_."));
-  const auto paper = readPaperTable(reference, condition);
+  // Seeds are taken in order and every taken seed finishes: the first `done` seeds are complete.
+  const bool interrupted = done < seeds;
+  if (interrupted) {
+    if (done == 0) {
+      std::fprintf(stderr, "interrupted: no seed finished\n");
+      return 130;
+    }
+    std::fprintf(stderr, "interrupted: %d of %d seeds finished; the tables cover those\n", done.load(), seeds);
+    seeds = done;
+    for (auto& per_method : results) per_method.resize(static_cast<std::size_t>(seeds));
+    references.resize(static_cast<std::size_t>(seeds));
+  }
 
   json records = json::array();
   std::printf("\nScenario %s: %d seeds, T_s = %.3g s, %.3g s of drive time. Median over seeds; [worst |error|]\n",
               base.name.c_str(), seeds, base.drive.sample_period, base.duration);
   if (!paper.empty()) std::printf("Paper columns: the seed paper's Table for %s (mean of 5 runs, T_s = 1e-6 s).\n", condition.c_str());
-  std::printf("%-22s", "");
+  std::printf("%-24s", "");
   for (const auto& m : methods) std::printf("%-24s", m.c_str());
   std::printf("\n");
   const char* units[] = {"[ohm]", "[H]", "[H]", "[Wb]"};
   for (int p = 0; p < kParameterCount; ++p) {
-    std::printf("%-6s %-15s", parameterNames()[p].c_str(), units[p]);
+    std::printf("%-6s %-17s", parameterNames()[p].c_str(), units[p]);
     for (std::size_t m = 0; m < methods.size(); ++m) {
       std::vector<double> v;
       for (const auto& r : results[m]) v.push_back(r.final.parameters[p]);
       std::printf("%-24.6g", median(v));
     }
-    std::printf("\n%-22s", "  error % [worst]");
+    std::printf("\n%-24s", "  error % [worst]");
     for (std::size_t m = 0; m < methods.size(); ++m) {
       std::vector<double> e;
       double worst = 0;
@@ -82,7 +109,7 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
       std::snprintf(buf, sizeof buf, "%+.3f [%.3f]", median(e), worst);
       std::printf("%-24s", buf);
     }
-    std::printf("\n%-22s", "  identified");
+    std::printf("\n%-24s", "  identified");
     for (std::size_t m = 0; m < methods.size(); ++m) {
       int n = 0;
       std::map<std::string, int> other;
@@ -94,10 +121,10 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
       for (const auto& [status, count] : other) text += " " + status.substr(0, 6) + ":" + std::to_string(count);
       std::printf("%-24s", text.c_str());
     }
-    std::printf("\n%-22s", "  identified, wrong>2%");
+    std::printf("\n%-24s", "  identified, wrong>2%");
     for (std::size_t m = 0; m < methods.size(); ++m) std::printf("%-24d", confidentlyWrong(results[m], p));
     if (!paper.empty()) {
-      std::printf("\n%-22s", "  paper value (err %)");
+      std::printf("\n%-24s", "  paper value (err %)");
       for (const auto& m : methods) {
         const auto it = paper.find(m);
         char buf[64] = "-";
@@ -107,7 +134,7 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
     }
     std::printf("\n");
   }
-  std::printf("%-22s", "recognition time [s]");
+  std::printf("%-24s", "recognition time [s]");
   for (std::size_t m = 0; m < methods.size(); ++m) {
     std::vector<double> t;
     int never = 0;
@@ -124,7 +151,7 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
     std::printf("%-24s", buf);
   }
   if (!paper.empty()) {
-    std::printf("\n%-22s", "  paper");
+    std::printf("\n%-24s", "  paper");
     for (const auto& m : methods) {
       const auto it = paper.find(m);
       char buf[32] = "-";
@@ -132,13 +159,13 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
       std::printf("%-24s", buf);
     }
   }
-  std::printf("\n%-22s", "fitness [A^2]");
+  std::printf("\n%-24s", "fitness [A^2]");
   for (std::size_t m = 0; m < methods.size(); ++m) {
     std::vector<double> f;
     for (const auto& r : results[m]) f.push_back(r.final.fitness);
     std::printf("%-24.4g", median(f));
   }
-  std::printf("\n%-22s", "CPU per sample [us]");
+  std::printf("\n%-24s", "CPU per sample [us]");
   for (std::size_t m = 0; m < methods.size(); ++m) {
     std::vector<double> c;
     for (const auto& r : results[m]) c.push_back(1e6 * r.cpu_s / static_cast<double>(r.samples));
@@ -149,7 +176,7 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
   std::vector<std::vector<json>> gaps(methods.size(), std::vector<json>(static_cast<std::size_t>(seeds)));
   if (wls_it != methods.end()) {
     const auto& ref = results[static_cast<std::size_t>(wls_it - methods.begin())];
-    std::printf("\n%-22s", "gap to wls: fitness %");
+    std::printf("\n%-24s", "gap to wls: fitness %");
     for (std::size_t m = 0; m < methods.size(); ++m) {
       std::vector<double> g;
       for (std::size_t k = 0; k < static_cast<std::size_t>(seeds); ++k) {
@@ -159,7 +186,7 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
       }
       std::printf("%-24.3g", median(g));
     }
-    std::printf("\n%-22s", "  parameters % [worst]");
+    std::printf("\n%-24s", "  parameters % [worst]");
     for (std::size_t m = 0; m < methods.size(); ++m) {
       std::vector<double> g;
       double worst = 0;
@@ -179,7 +206,7 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
       std::printf("%-24s", buf);
     }
   }
-  std::printf("\n%-22s", "confidently wrong");
+  std::printf("\n%-24s", "confidently wrong");
   for (std::size_t m = 0; m < methods.size(); ++m) {
     int n = 0;
     for (int p = 0; p < kParameterCount; ++p) n += confidentlyWrong(results[m], p);
@@ -264,7 +291,7 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
     records.push_back(j);
   }
   if (!json_out.empty()) writeJson(json_out, records);
-  return 0;
+  return interrupted ? 130 : 0;
 }
 
 }  // namespace pmsm_param_id::tool

@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -14,6 +15,7 @@ namespace pmsm_param_id::tool {
 std::map<std::string, PaperRow> readPaperTable(const std::string& path, const std::string& condition) {
   std::map<std::string, PaperRow> rows;
   std::ifstream in(path);
+  if (!in || std::filesystem::is_directory(path)) throw ConfigError("--reference: cannot read '" + path + "'");
   std::string line;
   while (std::getline(in, line)) {
     if (line.empty() || line[0] == '#' || line.rfind("condition", 0) == 0) continue;

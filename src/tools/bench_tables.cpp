@@ -141,16 +141,16 @@ void printReference(const std::vector<std::string>& methods, const std::vector<s
   for (const auto& r : references)
     if (r.available) f.push_back(r.fitness);
   std::printf("  fitness %.4g A^2 (median; %d/%zu seeds solved)\n", median(f), available, references.size());
-  std::printf("%-22s", "gap to reference:");
+  std::printf("%-24s", "gap to reference:");
   for (const auto& m : methods) std::printf("%-24s", m.c_str());
-  std::printf("\n%-22s", "  fitness excess [A^2]");  // absolute: the optimum of noise-free data is ~0
+  std::printf("\n%-24s", "  fitness excess [A^2]");  // absolute: the optimum of noise-free data is ~0
   for (std::size_t m = 0; m < methods.size(); ++m) {
     std::vector<double> g;
     for (std::size_t k = 0; k < references.size(); ++k)
       if (references[k].available) g.push_back(results[m][k].final.fitness - references[k].fitness);
     std::printf("%-24.3g", median(g));
   }
-  std::printf("\n%-22s", "  parameters % [worst]");
+  std::printf("\n%-24s", "  parameters % [worst]");
   for (std::size_t m = 0; m < methods.size(); ++m) {
     std::vector<double> g;
     for (std::size_t k = 0; k < references.size(); ++k) {
@@ -171,7 +171,7 @@ void printReference(const std::vector<std::string>& methods, const std::vector<s
 void printAlongRun(const std::vector<std::string>& methods, const std::vector<std::vector<RunResult>>& results,
                    bool roundtrip) {
   std::printf("\nAlong the run (an estimate every %.0f ms against the truth of its moment; a saturating machine's\n"
-              "truth is that of the operating point, doc/algorithm.md section 11):\n%-22s", 1e3 * kEstimatePeriod, "");
+              "truth is that of the operating point, doc/algorithm.md section 11):\n%-24s", 1e3 * kEstimatePeriod, "");
   for (const auto& m : methods) std::printf("%-24s", m.c_str());
   for (int p = 0; p < kParameterCount; ++p) {
     std::printf("\n  %-20s", (parameterNames()[p] + " wrong/ident.").c_str());

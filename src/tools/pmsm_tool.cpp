@@ -14,6 +14,13 @@
 using namespace pmsm_param_id;
 
 int main(int argc, char** argv) {
+  // A seed is a non-negative integer (a negative one would mean "the scenario's or config's own").
+  const CLI::Validator non_negative(
+      [](std::string& text) {
+        const bool digits = !text.empty() && text.size() <= 18 && text.find_first_not_of("0123456789") == std::string::npos;
+        return digits ? std::string() : std::string("must be an integer from 0 to 999999999999999999");
+      },
+      "INTEGER >= 0");
   CLI::App app{"pmsm_tool: IPMSM drive simulator and online parameter identification (ROS-free core)"};
   app.require_subcommand(1);
 
@@ -25,14 +32,14 @@ int main(int argc, char** argv) {
   auto* sim = app.add_subcommand("simulate", "run the drive simulator and write every sample to CSV");
   sim->add_option("--scenario", scenario, "scenario YAML")->required();
   sim->add_option("--csv", csv, "output CSV")->required();
-  sim->add_option("--seed", seed, "override run.seed");
+  sim->add_option("--seed", seed, "override run.seed")->check(non_negative);
   sim->add_option("--duration", duration, "override run.duration [s]");
 
   auto* ident = app.add_subcommand("identify", "identify R_s, L_d, L_q, psi_f from a drive log");
   ident->add_option("--csv", csv, "log with header t,u_d,u_q,i_d,i_q,omega_e")->required();
   ident->add_option("--method", method, "fbdapso|sapso|pso|ekf|rls (overrides the config)");
   ident->add_option("--config", config, "identifier YAML (bounds, initial values, tuning)");
-  ident->add_option("--seed", seed, "random seed (swarm methods)");
+  ident->add_option("--seed", seed, "random seed (swarm methods)")->check(non_negative);
   ident->add_option("--json", json_out, "write the final estimate as JSON");
   ident->add_option("--fitness", tool::fitness_override, "block | paper | paper_one_step (swarm methods; overrides the config)");
   std::string map_csv;

@@ -1,6 +1,9 @@
 #include "tool_common.hpp"
 
 #include <algorithm>
+#include <atomic>
+#include <csignal>
+#include <unistd.h>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -169,5 +172,22 @@ std::vector<std::string> methodsFrom(const std::string& list) {
     if (!isKnownMethod(m)) throw ConfigError("--methods: unknown method '" + m + "' (expected " + methodList() + ")");
   return methods;
 }
+
+namespace {
+std::atomic<bool> g_interrupt_requested{false};
+extern "C" void onInterrupt(int) {
+  if (g_interrupt_requested.exchange(true)) {  // the second Ctrl-C: end now
+    std::signal(SIGINT, SIG_DFL);
+    std::raise(SIGINT);
+    return;
+  }
+  const char text[] = "\ninterrupt: finishing what is under way (Ctrl-C again to stop at once)\n";
+  [[maybe_unused]] const auto n = ::write(STDERR_FILENO, text, sizeof text - 1);  // async-signal-safe
+}
+}  // namespace
+
+InterruptGuard::InterruptGuard() : previous_(std::signal(SIGINT, onInterrupt)) { g_interrupt_requested = false; }
+InterruptGuard::~InterruptGuard() { std::signal(SIGINT, previous_ == SIG_ERR ? SIG_DFL : previous_); }
+bool InterruptGuard::requested() const { return g_interrupt_requested.load(); }
 
 }  // namespace pmsm_param_id::tool

@@ -41,4 +41,18 @@ std::vector<std::string> splitList(const std::string& s);
 /// The comma-separated --methods list; ConfigError on an unknown name.
 std::vector<std::string> methodsFrom(const std::string& list);
 
+/// While alive, the first Ctrl-C (SIGINT) only asks the running job to stop after what is under
+/// way (requested() turns true, one line on stderr); a second one ends the process as usual.
+class InterruptGuard {
+ public:
+  InterruptGuard();
+  ~InterruptGuard();
+  InterruptGuard(const InterruptGuard&) = delete;
+  InterruptGuard& operator=(const InterruptGuard&) = delete;
+  bool requested() const;
+
+ private:
+  void (*previous_)(int);
+};
+
 }  // namespace pmsm_param_id::tool

@@ -186,6 +186,24 @@ TEST(IdentifierConfig, BadValuesNameTheKey) {
   EXPECT_NO_THROW(loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/default.yaml")));
 }
 
+TEST(IdentifierConfig, ADirectoryOrAListIsRefusedWithItsName) {
+  const std::string list = test_helpers::writeTemp("list_root.yaml", "- method: pso\n- seed: 3\n");
+  const auto message = [](const std::string& path) {
+    try {
+      loadIdentifierConfig(path);
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(message(list), list + ": expected a mapping of keys at the top level, got a list");
+  const std::string dir = test_helpers::sourcePath("config/identifiers");
+  EXPECT_EQ(message(dir), dir + ": is a directory, not a YAML file");
+  EXPECT_EQ(message(dir + "/missing.yaml"), dir + "/missing.yaml: cannot open file");
+  const std::string empty = test_helpers::writeTemp("empty.yaml", "");
+  EXPECT_EQ(message(empty), "no error");  // every key at its default
+}
+
 TEST(SampleCsvReader, MissingColumnAndNonNumericCellNameTheLine) {
   const std::string a = test_helpers::writeTemp("a.csv", "t,u_d,u_q,i_d,omega_e\n0,1,2,3,4\n");
   try {

@@ -8,6 +8,8 @@ import json
 import math
 import csv as csv_module
 import os
+import re
+import signal
 import subprocess
 import tempfile
 import unittest
@@ -214,10 +216,28 @@ class Tools(unittest.TestCase):
         self.assertEqual(r.returncode, 2)
         self.assertIn("only 10 usable samples: fewer than one fitness block", r.stderr)
 
+    def test_an_interrupted_bench_reports_the_seeds_it_finished(self):
+        p = subprocess.Popen([os.path.join(DEVEL_LIB, "pmsm_tool"), "bench", "--scenario",
+                              os.path.join(ROOT, "config/scenarios/wc1.yaml"), "--reference",
+                              os.path.join(ROOT, "config/reference/paper_tables.csv"), "--seeds", "200",
+                              "--methods", "rls", "--threads", "1"],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        first = p.stderr.readline()  # the first progress line: a seed or more finished
+        self.assertRegex(first, r"\[bench wc1\] \d+ of 200 seeds done, about \d+ s left")
+        p.send_signal(signal.SIGINT)
+        out, err = p.communicate(timeout=120)
+        self.assertEqual(p.returncode, 130, err)
+        self.assertRegex(err, r"interrupted: \d+ of 200 seeds finished")
+        finished = int(re.search(r"interrupted: (\d+) of 200", err).group(1))
+        self.assertIn("Scenario wc1: %d seeds" % finished, out)
+
     def test_command_line_errors_exit_2_and_help_exits_0(self):
         for args, text in ((["identify"], "--csv is required"), (["identify", "--csv", "x.csv", "--bogus"], "--bogus"),
                            (["bench", "--scenario", "s.yaml", "--reference", "r.csv", "--seeds", "many"], "--seeds"),
-                           ([], "A subcommand is required")):
+                           ([], "A subcommand is required"),
+                           (["simulate", "--scenario", "s.yaml", "--csv", "o.csv", "--seed", "-5"], "--seed"),
+                           (["bench", "--scenario", os.path.join(ROOT, "config/scenarios/wc1.yaml"), "--reference",
+                             "/nonexistent/paper.csv", "--seeds", "1"], "--reference: cannot read")):
             r = tool("pmsm_tool", *args)
             self.assertEqual(r.returncode, 2, (args, r.stderr))
             self.assertIn(text, r.stderr)

@@ -3,19 +3,28 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <filesystem>
 #include <functional>
 #include <sstream>
 
 namespace pmsm_param_id {
 
 YamlReader YamlReader::fromFile(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) throw ConfigError(path + ": is a directory, not a YAML file");
+  YAML::Node root;
   try {
-    return YamlReader(YAML::LoadFile(path), path);
+    root = YAML::LoadFile(path);
   } catch (const YAML::BadFile&) {
     throw ConfigError(path + ": cannot open file");
   } catch (const YAML::Exception& e) {
     throw ConfigError(path + ": not valid YAML (line " + std::to_string(e.mark.line + 1) + "): " + e.msg);
   }
+  // An empty file is an empty mapping (every key at its default); anything but a mapping is an error.
+  if (root.IsDefined() && !root.IsNull() && !root.IsMap())
+    throw ConfigError(path + ": expected a mapping of keys at the top level, got " +
+                      (root.IsSequence() ? std::string("a list") : std::string("a single value")));
+  return YamlReader(root, path);
 }
 
 void YamlReader::fail(const std::string& key, const std::string& message) const {
