@@ -19,6 +19,7 @@ Parameters:
 Publishes ~markers (visualization_msgs/MarkerArray).
 """
 import math
+import threading
 from collections import deque
 
 STATUS_CONSTANTS = ("NO_DATA", "IDENTIFIED", "NOT_EXCITED", "POOR_FIT", "AT_BOUND", "IMPLAUSIBLE", "NOT_CONVERGED")
@@ -313,6 +314,9 @@ def main():
         return 1
     state = PlotState(window, methods)
     origin = []
+    # The subscribers' callbacks run on rospy's threads and the drawing on this one: one lock, or a
+    # deque changes while the markers iterate over it.
+    lock = threading.Lock()
 
     def seconds(stamp):
         if not origin or stamp.to_nsec() < origin[0]:
@@ -320,16 +324,19 @@ def main():
         return (stamp.to_nsec() - origin[0]) * 1e-9
 
     def on_estimate(msg):
-        state.add_estimate(msg.method, seconds(msg.header.stamp), (msg.R_s, msg.L_d, msg.L_q, msg.psi_f),
-                           msg.identifiable, msg.fitness, report_status_names(msg),
-                           (msg.winding_temperature, msg.magnet_temperature))
+        with lock:
+            state.add_estimate(msg.method, seconds(msg.header.stamp), (msg.R_s, msg.L_d, msg.L_q, msg.psi_f),
+                               msg.identifiable, msg.fitness, report_status_names(msg),
+                               (msg.winding_temperature, msg.magnet_temperature))
 
     def on_truth(msg):
-        state.add_truth(seconds(msg.header.stamp), (msg.R_s, msg.L_d, msg.L_q, msg.psi_f),
-                        (msg.winding_temperature, msg.magnet_temperature))
+        with lock:
+            state.add_truth(seconds(msg.header.stamp), (msg.R_s, msg.L_d, msg.L_q, msg.psi_f),
+                            (msg.winding_temperature, msg.magnet_temperature))
 
     def on_event(msg):
-        state.add_event(seconds(msg.header.stamp), msg.method, msg.kind, msg.raised, msg.text)
+        with lock:
+            state.add_event(seconds(msg.header.stamp), msg.method, msg.kind, msg.raised, msg.text)
 
     for m in methods:
         rospy.Subscriber("%s/%s/estimate" % (ns, m), ParameterEstimate, on_estimate, queue_size=1000)
@@ -340,7 +347,8 @@ def main():
     pub = rospy.Publisher("~markers", MarkerArray, queue_size=2)
     r = rospy.Rate(rate)
     while not rospy.is_shutdown():
-        arr, _ = build_markers(state, frame)
+        with lock:
+            arr, _ = build_markers(state, frame)
         if arr.markers:
             clear = Marker()  # first in the same array: rviz drops the old plot and draws the new one at once
             clear.action = Marker.DELETEALL

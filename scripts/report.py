@@ -46,7 +46,8 @@ def read_bag(path):
     try:
         bag = rosbag.Bag(path)
     except Exception as e:  # rosbag raises several types for "not a bag"
-        raise SystemExit("error: %s: not a readable bag (%s)" % (path, e))
+        print("error: %s: not a readable bag (%s)" % (path, e), file=sys.stderr)
+        sys.exit(2)
     with bag:
         topics = bag.get_type_and_topic_info().topics
         est_topics = [t for t, info in topics.items() if info.msg_type == "pmsm_param_id/ParameterEstimate"]
@@ -464,13 +465,22 @@ def main(argv=None):
     parser.add_argument("bag")
     parser.add_argument("--out", help="output folder (default: BAG without .bag, plus _report)")
     parser.add_argument("--reference", default=os.path.join(here, "..", "config", "reference", "paper_tables.csv"))
-    parser.add_argument("--condition", default="auto", help="wc1, wc2, auto (from the speed) or none")
-    args = parser.parse_args(argv)
+    parser.add_argument("--condition", default="auto", choices=("wc1", "wc2", "auto", "none"),
+                        help="the paper's working condition to compare with: wc1, wc2, auto (from the speed) or none")
+    args = parser.parse_args(argv)  # a bad option: argparse's message and exit status 2
     if not os.path.isfile(args.bag):
-        raise SystemExit("error: %s: no such file" % args.bag)
-    data = read_bag(args.bag)
+        print("error: %s: no such file" % args.bag, file=sys.stderr)
+        return 2
+    if args.condition != "none" and not os.path.isfile(args.reference):
+        print("error: --reference: cannot read '%s' (or give --condition none)" % args.reference, file=sys.stderr)
+        return 2
     out = args.out or os.path.splitext(args.bag)[0] + "_report"
-    os.makedirs(out, exist_ok=True)
+    try:
+        os.makedirs(out, exist_ok=True)
+    except OSError as e:
+        print("error: --out: cannot create '%s': %s" % (out, e.strerror), file=sys.stderr)
+        return 2
+    data = read_bag(args.bag)
     condition = detect_condition(data) if args.condition == "auto" else (None if args.condition == "none" else args.condition)
     summary = summarize(data)
     draw(out, data)

@@ -177,9 +177,20 @@ class Report(unittest.TestCase):
         with open(path, "w") as f:
             f.write("this is not a bag\n")
         r = self.report(path, os.path.join(self.tmp, "nothing"))
-        self.assertNotEqual(r.returncode, 0)
+        self.assertEqual(r.returncode, 2, r.stderr)
         self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
         self.assertIn("not a readable bag", r.stderr)
+
+    def test_an_out_folder_that_cannot_be_made_and_a_bad_condition_exit_2(self):
+        r = self.report(self.bag, "/proc/pmsm_report_here")
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+        self.assertIn("error: --out: cannot create '/proc/pmsm_report_here'", r.stderr)
+        script = os.path.join(os.path.dirname(__file__), "..", "..", "scripts", "report.py")
+        r = subprocess.run(["/usr/bin/python3", script, self.bag, "--condition", "xyz"], stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True, timeout=60)
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertIn("invalid choice: 'xyz'", r.stderr)
 
 
 class Tools(unittest.TestCase):
