@@ -204,6 +204,14 @@ TEST(IdentifierConfig, ADirectoryOrAListIsRefusedWithItsName) {
   EXPECT_EQ(message(empty), "no error");  // every key at its default
 }
 
+TEST(SampleCsvReader, AByteOrderMarkBeforeTheHeaderIsNotPartOfItsFirstName) {
+  const std::string path = test_helpers::writeTemp("bom.csv", "\xEF\xBB\xBFt,u_d,u_q,i_d,i_q,omega_e\n0,1,2,3,4,5\n1e-4,1,2,3,4,5\n");
+  const SampleLog log = readSampleCsv(path);
+  ASSERT_EQ(log.samples.size(), 2u);
+  EXPECT_DOUBLE_EQ(log.samples[1].t, 1e-4);
+  EXPECT_DOUBLE_EQ(log.samples[1].omega_e, 5.0);
+}
+
 TEST(SampleCsvReader, MissingColumnAndNonNumericCellNameTheLine) {
   const std::string a = test_helpers::writeTemp("a.csv", "t,u_d,u_q,i_d,omega_e\n0,1,2,3,4\n");
   try {

@@ -60,6 +60,8 @@ SampleLog readSampleCsv(const std::string& path, const LogFormat& format) {
   }
   if (line_no == 0 || line.find_first_not_of(" \t\r") == std::string::npos)
     throw InputError(path + ": empty file (expected a header t,u_d,u_q,i_d,i_q,omega_e)");
+  // A UTF-8 byte-order mark (spreadsheet exports write one) is not part of the first column's name.
+  if (line_no == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
   const std::vector<std::string> header = splitCells(line);
   std::map<std::string, std::size_t> column;
   for (std::size_t i = 0; i < header.size(); ++i) column[header[i]] = i;
