@@ -17,6 +17,9 @@ int main(int argc, char** argv) {
   } catch (const pmsm_param_id::ConfigError& e) {
     ROS_FATAL("%s", e.what());
     return 1;
+  } catch (const std::exception& e) {  // anything else: one FATAL line and status 1, never an abort
+    ROS_FATAL("%s", e.what());
+    return 1;
   }
   return 0;
 }

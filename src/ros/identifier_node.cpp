@@ -66,11 +66,23 @@ void IdentifierNode::onBatch(const DriveSampleBatch::ConstPtr& msg) {
   }
   expected_index_ = msg->first_index + msg->u_d.size();
   have_index_ = true;
-  for (std::size_t k = 0; k < msg->u_d.size(); ++k)
-    consume(toSample(*msg, k, clock_.seconds(msg->header.stamp, k, msg->sample_period)));
+  try {
+    for (std::size_t k = 0; k < msg->u_d.size(); ++k)
+      consume(toSample(*msg, k, clock_.seconds(msg->header.stamp, k, msg->sample_period)));
+  } catch (const std::exception& e) {  // whatever it is, one message's problem never ends the node
+    ++bad_messages_;
+    ROS_ERROR_THROTTLE(1.0, "dropping the rest of a sample batch: %s", e.what());
+  }
 }
 
-void IdentifierNode::onSample(const DriveSample::ConstPtr& msg) { consume(toSample(*msg, clock_.seconds(msg->header.stamp))); }
+void IdentifierNode::onSample(const DriveSample::ConstPtr& msg) {
+  try {
+    consume(toSample(*msg, clock_.seconds(msg->header.stamp)));
+  } catch (const std::exception& e) {
+    ++bad_messages_;
+    ROS_ERROR_THROTTLE(1.0, "dropping a sample: %s", e.what());
+  }
+}
 
 void IdentifierNode::consume(const Sample& s) {
   ++received_;

@@ -1,5 +1,8 @@
 // The only place where ROS types meet the core's types.
 #pragma once
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <ros/ros.h>
 
 #include <limits>
@@ -63,9 +66,17 @@ class StreamClock {
       origin_ = stamp;
       has_origin_ = true;
     }
-    return (stamp - origin_).toSec() + static_cast<double>(k) * period;
+    // In nanoseconds, not ros::Duration: a stamp more than 2^31 s after the origin (a clock jump)
+    // would throw "Duration is out of dual 32-bit range" there.
+    const std::int64_t ns = static_cast<std::int64_t>(stamp.toNSec() - origin_.toNSec());
+    return static_cast<double>(ns) * 1e-9 + static_cast<double>(k) * period;
   }
-  ros::Time stampOf(double seconds) const { return origin_ + ros::Duration(seconds); }
+  ros::Time stampOf(double seconds) const {
+    const double ns = std::round(seconds * 1e9);
+    ros::Time t;
+    t.fromNSec(origin_.toNSec() + static_cast<std::uint64_t>(std::max(0.0, ns)));
+    return t;
+  }
   void reset() { has_origin_ = false; }
 
  private:

@@ -101,6 +101,11 @@ class IdentifierNode(unittest.TestCase):
         self.assertTrue(self.wait_for(lambda: any(m.name == "/probe" and "less than a quarter period" in m.msg
                                                   for m in self.log), 10), "no warning for the too-close sample")
         self.assertTrue(all(math.isfinite(v) for p in self.probe for v in (p.R_s, p.L_d, p.L_q, p.psi_f)))
+        # A stamp 4e9 s later (beyond ros::Duration's 2^31 s): a gap, not an abort.
+        pub.publish(self.batch(rospy.Time(4000005000), 300))
+        self.assertTrue(self.wait_for(lambda: self.counters(name).get("samples received") == "350", 10),
+                        str(self.counters(name)))
+        self.assertEqual(self.counters(name)["time gaps"], "2")
 
     def test_no_samples_gives_a_warning(self):
         name = "silent: identifier"
