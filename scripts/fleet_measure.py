@@ -89,9 +89,12 @@ def main():
                 pass
         samples.append((time.time() - t0, snap))
         time.sleep(2.0)
-        for i in range(a.motors):
-            if rospy.has_param("/motor_%d/drive/samples_published" % i):
-                published[i] = rospy.get_param("/motor_%d/drive/samples_published" % i)
+        try:
+            for i in range(a.motors):
+                if rospy.has_param("/motor_%d/drive/samples_published" % i):
+                    published[i] = rospy.get_param("/motor_%d/drive/samples_published" % i)
+        except OSError:  # the launch (and its master) ended between the poll and this query
+            break
         if len(published) == a.motors and all(i in last and last[i].samples_used == published[i] for i in published):
             break
     launch.terminate()
