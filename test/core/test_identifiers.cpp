@@ -465,3 +465,23 @@ TEST(Saturation, UnderASpeedLoopTheLinesInIqKeepTheEstimatesRight) {
     }
   }
 }
+
+TEST(Assessment, ZeroCurrentIsNotExcitedNotImplausible) {
+  // A motor at standstill with the inverter on: voltages, no current, no speed. Nothing can be
+  // identified, and the method never starts (the data never fix the scale): every parameter is
+  // not_excited with the reason, not "nan is outside every PMSM's range".
+  std::vector<Sample> samples;
+  for (int k = 0; k < 5000; ++k) samples.push_back(Sample{k * 1e-4, 1.0, 2.0, 0.0, 0.0, 0.0});
+  for (const char* method : {"fbdapso", "rls"}) {
+    IdentifierConfig c;
+    c.method = method;
+    auto id = makeIdentifier(c);
+    for (const Sample& s : samples) id->process(s);
+    const Estimate e = id->estimate();
+    for (int p = 0; p < kParameterCount; ++p) {
+      EXPECT_EQ(e.status[p], ParameterStatus::NotExcited) << method << " " << parameterNames()[p] << ": " << e.reason[p];
+      EXPECT_NE(e.reason[p].find("do not fix the motor's scale"), std::string::npos) << e.reason[p];
+      EXPECT_FALSE(e.identifiable[p]);
+    }
+  }
+}

@@ -565,6 +565,8 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
   Assessment out;
   out.relative_uncertainty.fill(std::numeric_limits<double>::infinity());
   const double limit = a.max_relative_uncertainty;
+  // All four NaN: the method has not started (a NaN beside finite values is a method gone wrong).
+  const bool not_started = std::all_of(x.begin(), x.end(), [](double v) { return std::isnan(v); });
   for (int p = 0; p < kParameterCount; ++p) {
     ParameterStatus& st = out.status[p];
     std::string& why = out.reason[p];
@@ -572,6 +574,12 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
     if (!std::isfinite(v) && !fit.available) {
       st = ParameterStatus::NoData;
       why = "no data yet";
+      continue;
+    }
+    if (not_started) {  // it starts once the data fix the motor's scale
+      st = ParameterStatus::NotExcited;
+      why = "no estimate: the data do not fix the motor's scale yet (an inductance to 10 %); is there current "
+            "through the motor, and does it change?";
       continue;
     }
     if (!plausible(p, v)) {
