@@ -2,6 +2,8 @@
 // (identification/motor_map.hpp).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <memory>
 
@@ -157,6 +159,32 @@ TEST(MotorMap, FiveLoadLevelsMappedAndTheExportReproducesTheRun) {
     }
   const CurrentDifference linear = currentDifference(original, run(withFluxMap(s, std::make_shared<const FluxTable>(i_d, i_q, psi_d, psi_q))));
   EXPECT_GT(linear.relative_rms, 0.05);
+}
+
+TEST(MotorMap, AFullMapReplacesTheCellSeenLongestAgo) {
+  MotorMapSettings settings;
+  settings.max_cells = 3;
+  MotorMap map(settings);
+  Estimate e;
+  e.parameters = {0.9, 0.025, 0.09, 0.49};
+  e.status.fill(ParameterStatus::Identified);
+  const double currents[] = {16.0, 1.0, 2.0, 4.0, 8.0};  // five cells' worth (the largest first: fixed tolerances)
+  for (int k = 0; k < 5; ++k) {
+    e.t = k;
+    e.operating_point = {0.0, currents[k], 280.0, 0.1, 0.01};
+    EXPECT_GE(map.add(e), 0) << k;
+  }
+  ASSERT_EQ(map.cells().size(), 3u);
+  EXPECT_EQ(map.replacedCells(), 2u);
+  std::vector<double> kept;
+  for (const MotorMapCell& c : map.cells()) kept.push_back(c.i_q);
+  std::sort(kept.begin(), kept.end());
+  EXPECT_EQ(kept, (std::vector<double>{2.0, 4.0, 8.0}));  // 16 A (t = 0) and 1 A (t = 1) made room
+  EXPECT_NE(map.coverageNote().find("2 cell(s) replaced by newer operating points (map.max_cells = 3)"), std::string::npos)
+      << map.coverageNote();
+  MotorMapSettings none;
+  none.max_cells = 0;
+  EXPECT_THROW(MotorMap{none}, ConfigError);
 }
 
 TEST(MotorMap, AWindowAcrossALoadStepIsNotFiled) {

@@ -68,6 +68,9 @@ struct MotorMapSettings {
   /// (standard deviation) at most a quarter of that tolerance; i_d may move more (the injection), L_d is
   /// the slope across it.
   double cell_fraction = 0.1;
+  /// At most this many cells: a new operating point beyond them replaces the cell seen longest ago
+  /// (a drive wandering over a fine spread of points must not grow the map without end).
+  int max_cells = 1000;
   /// The cell tolerance [A] about a current of this magnitude [A]: cell_fraction times the larger
   /// of it and 5 % of the largest current seen (the map, its one-cell rule and the monitor's cells).
   double tolerance(double current, double largest_current) const {

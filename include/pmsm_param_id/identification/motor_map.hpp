@@ -53,6 +53,8 @@ class MotorMap {
   /// the window's i_q moved across more than a cell (a load change: counted as transient).
   int add(const Estimate& e);
   std::uint64_t transientEstimates() const { return transient_; }
+  /// Cells replaced because the map held settings().max_cells (the one seen longest ago goes).
+  std::uint64_t replacedCells() const { return replaced_; }
   const std::vector<MotorMapCell>& cells() const { return cells_; }
   const MotorMapSettings& settings() const { return settings_; }
   /// The flux linkages on a grid, from the cells where L_d, L_q and psi_f were identified:
@@ -70,6 +72,7 @@ class MotorMap {
   std::vector<MotorMapCell> cells_;
   double largest_current_ = 0.0;
   std::uint64_t transient_ = 0;
+  std::uint64_t replaced_ = 0;
 };
 
 }  // namespace pmsm_param_id

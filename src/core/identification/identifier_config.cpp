@@ -109,6 +109,7 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
       static_cast<int>(y.integer("swarm.iterations_per_sample", c.iterations_per_sample, 1, 10000));
   c.magnetics.cross_saturation = y.flag("magnetics.cross_saturation", c.magnetics.cross_saturation);
   c.map.cell_fraction = y.number("map.cell_fraction", c.map.cell_fraction);
+  c.map.max_cells = static_cast<int>(y.integer("map.max_cells", c.map.max_cells, 1, 1000000));
   fitnessKindFrom(y.oneOf("fitness", toString(c.fitness), {"block", "paper", "paper_one_step"}), c.fitness);
   c.fitness_window_samples =
       static_cast<int>(y.integer("fitness_window_samples", c.fitness_window_samples, 2, 1000000));

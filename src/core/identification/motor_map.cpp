@@ -11,6 +11,7 @@ namespace pmsm_param_id {
 MotorMap::MotorMap(const MotorMapSettings& settings) : settings_(settings) {
   if (!(settings_.cell_fraction > 0.0 && settings_.cell_fraction < 1.0))
     throw ConfigError("map.cell_fraction must be in (0, 1)");
+  if (settings_.max_cells < 1) throw ConfigError("map.max_cells must be >= 1");
 }
 
 bool windowWithinOneCell(const OperatingPoint& op, double largest_current, const MotorMapSettings& settings,
@@ -47,8 +48,17 @@ int MotorMap::add(const Estimate& e) {
     c.i_d = op.i_d;
     c.i_q = op.i_q;
     c.first_seen = e.t;
-    cells_.push_back(c);
-    found = static_cast<int>(cells_.size()) - 1;
+    if (cells_.size() < static_cast<std::size_t>(settings_.max_cells)) {
+      cells_.push_back(c);
+      found = static_cast<int>(cells_.size()) - 1;
+    } else {  // full: the cell seen longest ago makes room
+      const auto oldest = std::min_element(cells_.begin(), cells_.end(), [](const MotorMapCell& a, const MotorMapCell& b) {
+        return a.last_seen < b.last_seen;
+      });
+      *oldest = c;
+      found = static_cast<int>(oldest - cells_.begin());
+      ++replaced_;
+    }
   }
   MotorMapCell& c = cells_[static_cast<std::size_t>(found)];
   c.latest_point = op;
@@ -77,8 +87,15 @@ std::string MotorMap::coverageNote() const {
       std::snprintf(buf, sizeof buf, "%s%.3g", where.empty() ? "" : ", ", c.i_q);
       where += buf;
     }
-  if (where.empty()) return "";
-  return "visited but not mapped (L_d or psi_f never identified there), the map is interpolated or extrapolated "
+  std::string replaced;
+  if (replaced_ > 0) {
+    char buf[120];
+    std::snprintf(buf, sizeof buf, "%llu cell(s) replaced by newer operating points (map.max_cells = %d)",
+                  static_cast<unsigned long long>(replaced_), settings_.max_cells);
+    replaced = buf;
+  }
+  if (where.empty()) return replaced;
+  return (replaced.empty() ? "" : replaced + "; ") + "visited but not mapped (L_d or psi_f never identified there), the map is interpolated or extrapolated "
          "there: i_q = " + where + " A";
 }
 
