@@ -212,6 +212,23 @@ TEST(SampleCsvReader, AByteOrderMarkBeforeTheHeaderIsNotPartOfItsFirstName) {
   EXPECT_DOUBLE_EQ(log.samples[1].omega_e, 5.0);
 }
 
+TEST(SampleCsvReader, AFileWithoutLineBreaksIsRefusedWithoutReadingItWhole) {
+  // 3 MiB of NULs (a binary file, a disk image): one clear message at the first MiB.
+  const std::string path = test_helpers::writeTemp("nul.csv", std::string(3u << 20, '\0'));
+  try {
+    readSampleCsv(path);
+    ADD_FAILURE() << "accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), path + ":1: a line longer than 1 MiB: not a CSV drive log");
+  }
+  // A last line without a newline is read.
+  const std::string last = test_helpers::writeTemp("last.csv", "t,u_d,u_q,i_d,i_q,omega_e\n0,1,2,3,4,5\n1e-4,1,2,3,4,6");
+  const SampleLog log = readSampleCsv(last);
+  ASSERT_EQ(log.samples.size(), 2u);
+  EXPECT_DOUBLE_EQ(log.samples[1].omega_e, 6.0);
+  EXPECT_EQ(log.line_numbers[1], 3u);
+}
+
 TEST(SampleCsvReader, MissingColumnAndNonNumericCellNameTheLine) {
   const std::string a = test_helpers::writeTemp("a.csv", "t,u_d,u_q,i_d,omega_e\n0,1,2,3,4\n");
   try {

@@ -33,6 +33,24 @@ void writeSampleCsv(const std::string& path, const std::vector<SimulatedSample>&
 }
 
 namespace {
+/// A CSV log's line is a few hundred bytes; one longer than this is not a log (a binary file, a file
+/// of NULs), and reading it whole could take gigabytes.
+constexpr std::size_t kMaxLineBytes = 1 << 20;
+
+/// std::getline, but refusing a line beyond kMaxLineBytes with the line's number (istream::getline
+/// into a fixed buffer: it stops at the buffer's end instead of growing a string without bound).
+bool readLine(std::istream& in, std::vector<char>& buffer, std::string& line, std::size_t line_no,
+              const std::string& path) {
+  in.getline(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+  const std::streamsize n = in.gcount();
+  if (in.fail() && !in.eof() && n == static_cast<std::streamsize>(buffer.size()) - 1)
+    throw InputError(path + ":" + std::to_string(line_no) + ": a line longer than 1 MiB: not a CSV drive log");
+  if (n == 0 && !in) return false;  // end of file
+  const bool delimited = !in.eof();   // the newline was extracted (and counted in n), not stored
+  line.assign(buffer.data(), static_cast<std::size_t>(delimited ? n - 1 : n));
+  return true;
+}
+
 std::vector<std::string> splitCells(const std::string& line) {
   std::vector<std::string> cells;
   std::stringstream ss(line);
@@ -52,9 +70,10 @@ SampleLog readSampleCsv(const std::string& path, const LogFormat& format) {
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open file");
   std::string line;
+  std::vector<char> buffer(kMaxLineBytes + 1);
   std::size_t line_no = 0;
   // Header: first non-empty line.
-  while (std::getline(in, line)) {
+  while (readLine(in, buffer, line, line_no + 1, path)) {
     ++line_no;
     if (line.find_first_not_of(" \t\r") != std::string::npos) break;
   }
@@ -105,7 +124,7 @@ SampleLog readSampleCsv(const std::string& path, const LogFormat& format) {
                        text + "'");
     return v;  // nan/inf parse and are returned as such
   };
-  while (std::getline(in, line)) {
+  while (readLine(in, buffer, line, line_no + 1, path)) {
     ++line_no;
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
     const std::vector<std::string> cells = splitCells(line);
