@@ -9,6 +9,7 @@
 #include "pmsm_param_id/identification/identifiers.hpp"
 #include "pmsm_param_id/identification/metrics.hpp"
 #include "pmsm_param_id/identification/monitor.hpp"
+#include "pmsm_param_id/identification/motor_map.hpp"
 #include "pmsm_param_id/identification/online_identifier.hpp"
 #include "pmsm_param_id/identification/sample_period.hpp"
 #include "pmsm_param_id/io/config_error.hpp"
@@ -1099,6 +1100,46 @@ TEST(Monitor, OnASaturatingMachineLoadStepsAreNotJumpsButAFaultIs) {
     if (ev.kind == AlarmKind::ParameterJump && ev.raised && jump_at < 0) jump_at = ev.t;
   EXPECT_GE(jump_at, 2.5);
   EXPECT_LE(jump_at, 3.0);
+}
+
+TEST(Monitor, AStreamThatRestartsClearsItsAlarmsAndIsNotComparedWithTheOldOne) {
+  // A looping bag: stamps go back to the start. Alarms raised by the first pass clear with a reason,
+  // and the second pass's values are not compared with the first's (R_s 50 % higher after the
+  // restart is no jump); the map starts again too.
+  ConditionMonitor monitor;
+  MotorMap map;
+  Estimate e;
+  e.status.fill(ParameterStatus::Identified);
+  e.identifiable.fill(true);
+  e.relative_uncertainty.fill(0.001);
+  e.operating_point = {0.0, 5.0, 400.0, 0.1, 0.01};
+  e.parameters = {1.0, 0.004, 0.012, 0.17};
+  e.winding_temperature = {200.0, 1.0};  // above the 155 degC limit
+  bool raised = false;
+  for (int k = 0; k <= 100; ++k) {
+    e.t = 0.01 * k;
+    for (const AlarmEvent& ev : monitor.update(e)) raised = raised || (ev.kind == AlarmKind::WindingOverTemperature && ev.raised);
+    map.add(e);
+  }
+  ASSERT_TRUE(raised);
+  ASSERT_TRUE(monitor.active(AlarmKind::WindingOverTemperature));
+  e.operating_point = {0.0, 9.0, 400.0, 0.1, 0.01};  // another operating point after the restart
+  e.parameters = {1.5, 0.004, 0.012, 0.17};
+  e.winding_temperature = {40.0, 1.0};
+  std::vector<AlarmEvent> events;
+  for (int k = 0; k <= 100; ++k) {
+    e.t = 0.01 * k;
+    for (const AlarmEvent& ev : monitor.update(e)) events.push_back(ev);
+    map.add(e);
+  }
+  ASSERT_FALSE(events.empty());
+  EXPECT_EQ(events.front().kind, AlarmKind::WindingOverTemperature);
+  EXPECT_FALSE(events.front().raised);
+  EXPECT_NE(events.front().text.find("the stream restarted"), std::string::npos) << events.front().text;
+  for (const AlarmEvent& ev : events) EXPECT_FALSE(ev.raised) << toString(ev.kind) << ": " << ev.text;
+  EXPECT_FALSE(monitor.active(AlarmKind::ParameterJump));
+  ASSERT_EQ(map.cells().size(), 1u);  // only the second pass's operating point
+  EXPECT_NEAR(map.cells()[0].i_q, 9.0, 1e-12);
 }
 
 TEST(Monitor, WindingOverTemperatureAndAJumpInResistance) {

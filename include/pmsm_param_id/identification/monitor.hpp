@@ -15,6 +15,7 @@
 // then judged only between estimates whose operating i_q share a cell of the map (map.cell_fraction).
 #pragma once
 #include <deque>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -44,7 +45,9 @@ class ConditionMonitor {
   static ConditionMonitor forConfig(const IdentifierConfig& c) {
     return ConditionMonitor(c.alarms, c.magnetics.cross_saturation ? c.map.cell_fraction : 0.0);
   }
-  /// Feeds an estimate (in stamp order); returns the alarms raised or cleared by it.
+  /// Feeds an estimate (in stamp order); returns the alarms raised or cleared by it. An estimate
+  /// stamped before the last one (the stream restarted: a looping bag) clears every active alarm
+  /// and forgets the history first: estimates of two streams are never compared.
   std::vector<AlarmEvent> update(const Estimate& e);
   bool active(AlarmKind k) const { return active_[static_cast<int>(k)]; }
 
@@ -72,6 +75,7 @@ class ConditionMonitor {
   };
   std::array<LastValue, kParameterCount> last_{};
   double jump_at_ = -1.0;
+  double last_t_ = -std::numeric_limits<double>::infinity();  // stamp of the last estimate [s]
 };
 
 }  // namespace pmsm_param_id

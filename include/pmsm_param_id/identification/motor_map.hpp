@@ -48,7 +48,8 @@ bool windowWithinOneCell(const OperatingPoint& op, double largest_current, const
 class MotorMap {
  public:
   explicit MotorMap(const MotorMapSettings& settings = {});
-  /// Files the estimate under its operating point's cell (a new cell when none is near).
+  /// Files the estimate under its operating point's cell (a new cell when none is near). An
+  /// estimate stamped before the last one (the stream restarted) starts the map again.
   /// Returns the cell's index, or -1 when nothing was filed: the operating point is not finite, or
   /// the window's i_q moved across more than a cell (a load change: counted as transient).
   int add(const Estimate& e);
@@ -73,6 +74,7 @@ class MotorMap {
   double largest_current_ = 0.0;
   std::uint64_t transient_ = 0;
   std::uint64_t replaced_ = 0;
+  double last_t_ = -std::numeric_limits<double>::infinity();  // stamp of the last estimate [s]
 };
 
 }  // namespace pmsm_param_id

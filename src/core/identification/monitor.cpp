@@ -32,6 +32,15 @@ bool ConditionMonitor::sameCell(double i_q_a, double i_q_b) const {
 std::vector<AlarmEvent> ConditionMonitor::update(const Estimate& e) {
   std::vector<AlarmEvent> out;
   const double t = e.t;
+  if (t < last_t_) {  // a new stream: clear what the old one raised, forget what it showed
+    for (AlarmKind k : {AlarmKind::WindingOverTemperature, AlarmKind::Demagnetisation, AlarmKind::ParameterJump,
+                        AlarmKind::FastDrift})
+      set(k, false, t, "cleared: the stream restarted (stamps went backwards)", out);
+    const AlarmSettings settings = s_;
+    const double cells = cell_fraction_;
+    *this = ConditionMonitor(settings, cells);
+  }
+  last_t_ = t;
   const double i_q = std::isfinite(e.operating_point.i_q) ? e.operating_point.i_q : 0.0;
   largest_i_q_ = std::max(largest_i_q_, std::abs(i_q));
   char buf[256];

@@ -23,6 +23,12 @@ bool windowWithinOneCell(const OperatingPoint& op, double largest_current, const
 }
 
 int MotorMap::add(const Estimate& e) {
+  if (e.t < last_t_) {  // a new stream: its operating points are not the old one's
+    cells_.clear();
+    largest_current_ = 0.0;
+    transient_ = replaced_ = 0;
+  }
+  last_t_ = e.t;
   const OperatingPoint& op = e.operating_point;
   if (!std::isfinite(op.i_d) || !std::isfinite(op.i_q)) return -1;
   const double magnitude = std::hypot(op.i_d, op.i_q);
