@@ -40,7 +40,9 @@ class BagData:
         self.missing = []     # what the bag lacks, in words
 
 
-def read_bag(path):
+def read_bag(path, namespace=""):
+    """The estimates, truth, events, maps and speeds of one drive, found by message type (any
+    namespace: /drive/..., a fleet's /motor_N/...); `namespace` picks one drive where there are several."""
     import rosbag  # Debian's python3-rosbag
     data = BagData()
     try:
@@ -50,15 +52,26 @@ def read_bag(path):
         sys.exit(2)
     with bag:
         topics = bag.get_type_and_topic_info().topics
-        est_topics = [t for t, info in topics.items() if info.msg_type == "pmsm_param_id/ParameterEstimate"]
-        event_topics = set(t for t, info in topics.items() if info.msg_type == "pmsm_param_id/ConditionEvent")
-        map_topics = [t for t, info in topics.items() if info.msg_type == "pmsm_param_id/ParameterMap"]
+        prefix = namespace.rstrip("/") + "/" if namespace else ""
+
+        def of_type(t):
+            return sorted(name for name, info in topics.items()
+                          if info.msg_type == "pmsm_param_id/" + t and name.startswith(prefix))
+        est_topics = of_type("ParameterEstimate")
+        event_topics = set(of_type("ConditionEvent"))
+        map_topics = of_type("ParameterMap")
+        truth_topics = of_type("ElectricalParameters")
+        sample_topics = of_type("DriveSampleBatch")
+        if len(truth_topics) > 1 or len(sample_topics) > 1:
+            print("error: %s: several drives in this bag (%s): choose one with --namespace" %
+                  (path, ", ".join(truth_topics or sample_topics)), file=sys.stderr)
+            sys.exit(2)
         # Latched, growing: keep the latest. (An empty topic list would read every topic.)
         for _, msg, _ in (bag.read_messages(topics=map_topics) if map_topics else []):
             data.maps[msg.method] = msg
         raw = []
-        wanted = est_topics + sorted(event_topics) + ["/drive/true_parameters", "/drive/samples_batch"]
-        for topic, msg, _ in bag.read_messages(topics=wanted):
+        wanted = est_topics + sorted(event_topics) + truth_topics + sample_topics
+        for topic, msg, _ in (bag.read_messages(topics=wanted) if wanted else []):
             stamp = msg.header.stamp.to_nsec()
             data.origin = stamp if data.origin is None else min(data.origin, stamp)
             raw.append((topic, msg, stamp))
@@ -66,13 +79,13 @@ def read_bag(path):
         data.origin = 0
     for topic, msg, stamp in raw:
         t = (stamp - data.origin) * 1e-9
-        if topic == "/drive/true_parameters":
+        if topic in truth_topics:
             data.truth.append((t, (msg.R_s, msg.L_d, msg.L_q, msg.psi_f)))
             data.truth_temperatures.append((t, getattr(msg, "winding_temperature", float("nan")),
                                             getattr(msg, "magnet_temperature", float("nan"))))
         elif topic in event_topics:
             data.events.append((t, msg.method, msg.kind, msg.raised, msg.text))
-        elif topic == "/drive/samples_batch":
+        elif topic in sample_topics:
             data.speeds.extend(msg.omega_e[-1:])
         else:
             data.estimates.setdefault(msg.method, []).append((t, msg))
@@ -89,7 +102,8 @@ def read_bag(path):
         if absent:
             data.missing.append("no estimates from " + ", ".join(absent))
     if not data.truth:
-        data.missing.append("no true parameters (/drive/true_parameters): errors and recognition times cannot be computed")
+        data.missing.append("no true parameters (no pmsm_param_id/ElectricalParameters topic): errors and recognition "
+                            "times cannot be computed")
     return data
 
 
@@ -465,6 +479,8 @@ def main(argv=None):
     parser.add_argument("bag")
     parser.add_argument("--out", help="output folder (default: BAG without .bag, plus _report)")
     parser.add_argument("--reference", default=os.path.join(here, "..", "config", "reference", "paper_tables.csv"))
+    parser.add_argument("--namespace", default="",
+                        help="the drive's namespace where the bag holds several (e.g. /motor_3)")
     parser.add_argument("--condition", default="auto", choices=("wc1", "wc2", "auto", "none"),
                         help="the paper's working condition to compare with: wc1, wc2, auto (from the speed) or none")
     args = parser.parse_args(argv)  # a bad option: argparse's message and exit status 2
@@ -480,7 +496,7 @@ def main(argv=None):
     except OSError as e:
         print("error: --out: cannot create '%s': %s" % (out, e.strerror), file=sys.stderr)
         return 2
-    data = read_bag(args.bag)
+    data = read_bag(args.bag, args.namespace)
     condition = detect_condition(data) if args.condition == "auto" else (None if args.condition == "none" else args.condition)
     summary = summarize(data)
     draw(out, data)

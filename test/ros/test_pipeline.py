@@ -155,6 +155,28 @@ class Report(unittest.TestCase):
                                        msg="%s %s: %s" % (m, p, cell))
         self.assertIn("paper fbdapso", header)  # wc1_drive is recognised as the paper's wc1
 
+    def test_a_fleet_bag_is_read_by_type_and_one_drive_chosen_by_namespace(self):
+        # The demo bag's messages under a fleet's namespaces: found by type, not by /drive/ names.
+        one, two = os.path.join(self.tmp, "motor3.bag"), os.path.join(self.tmp, "motors34.bag")
+        with rosbag.Bag(self.bag) as src, rosbag.Bag(one, "w") as a, rosbag.Bag(two, "w") as b:
+            for topic, msg, t in src.read_messages():
+                a.write("/motor_3" + topic, msg, t)
+                b.write("/motor_3" + topic, msg, t)
+                b.write("/motor_4" + topic, msg, t)
+        r = self.report(one, os.path.join(self.tmp, "report_motor3"))
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertNotIn("no true parameters", r.stderr)
+        with open(os.path.join(self.tmp, "report_motor3", "report.md")) as f:
+            self.assertIn("| Parameter", f.read())
+        r = self.report(two, os.path.join(self.tmp, "report_motors34"))
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertIn("several drives in this bag", r.stderr)
+        script = os.path.join(os.path.dirname(__file__), "..", "..", "scripts", "report.py")
+        r = subprocess.run(["/usr/bin/python3", script, two, "--out", os.path.join(self.tmp, "report_motor4"),
+                            "--namespace", "/motor_4"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                           timeout=300)
+        self.assertEqual(r.returncode, 0, r.stderr)
+
     def test_a_bag_without_estimates_or_truth_says_what_is_missing(self):
         tmp = tempfile.mkdtemp(prefix="pmsm_report_missing_")
         csv, bag = os.path.join(tmp, "x.csv"), os.path.join(tmp, "x.bag")
