@@ -268,9 +268,9 @@ BlockFit jointFit(const WindowSums& window, const BlockFit& own, const WindowSum
   // Each window's rise in units of the variance its own uncertainties are stated with (the noise,
   // or the residual the fit check accepted where that is larger).
   const auto rise = [&](const WindowSums& w, const BlockFit& alone, double noise_d, double noise_q) {
-    double ms_d = 0, ms_q = 0, dd = 0, dq = 0, ms0_d = 0, ms0_q = 0;
+    double ms_d = 0, ms_q = 0, dd = 0, dq = 0;
     BlockLeastSquares::residuals(w, model, f.beta, ms_d, ms_q, dd, dq);
-    BlockLeastSquares::residuals(w, model, alone.beta, ms0_d, ms0_q, dd, dq);
+    const double ms0_d = alone.mean_square_d, ms0_q = alone.mean_square_q;  // at its own optimum
     const double floor_d = std::max({noise_d, ms0_d, w.min_noise_variance}), floor_q = std::max({noise_q, ms0_q, w.min_noise_variance});
     return w.weight * ((ms_d - ms0_d) / floor_d + (ms_q - ms0_q) / floor_q);
   };
