@@ -349,7 +349,6 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
       // R_s. Together they separate them: the joint fit, where the two windows agree on one set of
       // parameters (each one's residual rises by no more than chance allows), gives the constants.
       const BlockFit joint_fit = jointFit(window, free_fit, long_window, model, a.variance_inflation);
-      const BlockFit& long_fit = joint_fit;
       const auto stdOf = [](const BlockFit& fit, int j) {
         return fit.ok && fit.determined[static_cast<std::size_t>(j)] && std::isfinite(fit.beta(j)) ? fit.standard_deviation(j)
                                                                                                   : std::numeric_limits<double>::infinity();
@@ -357,19 +356,19 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
       std::vector<bool> hold(static_cast<std::size_t>(model.size()), false);
       std::vector<std::pair<int, double>> shifts;  // (entry, its long-window std)
       Eigen::VectorXd at = free_fit.beta;
-      if (estimate_angle && stdOf(long_fit, angle_index) < stdOf(free_fit, angle_index)) {
+      if (estimate_angle && stdOf(joint_fit, angle_index) < stdOf(free_fit, angle_index)) {
         hold[static_cast<std::size_t>(angle_index)] = true;
-        at(angle_index) = long_fit.beta(angle_index);
-        shifts.emplace_back(angle_index, stdOf(long_fit, angle_index));
+        at(angle_index) = joint_fit.beta(angle_index);
+        shifts.emplace_back(angle_index, stdOf(joint_fit, angle_index));
       }
       const int shape_end = estimate_inverter ? (with_bus ? 7 : 6) : 4;
-      if (estimate_inverter && stdOf(long_fit, 4) < stdOf(free_fit, 4) && long_fit.beta(4) > 0) {
+      if (estimate_inverter && stdOf(joint_fit, 4) < stdOf(free_fit, 4) && joint_fit.beta(4) > 0) {
         for (int j = 4; j < shape_end; ++j) {  // V with its shape's shares
           hold[static_cast<std::size_t>(j)] = true;
-          at(j) = long_fit.beta(j);
+          at(j) = joint_fit.beta(j);
         }
-        shifts.emplace_back(4, stdOf(long_fit, 4));
-        inverter_long_relative_std = stdOf(long_fit, 4) / long_fit.beta(4);
+        shifts.emplace_back(4, stdOf(joint_fit, 4));
+        inverter_long_relative_std = stdOf(joint_fit, 4) / joint_fit.beta(4);
       }
       if (!shifts.empty()) {
         const BlockFit known = BlockLeastSquares::fit(window, model, at, hold, a.variance_inflation);
@@ -387,7 +386,7 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
           held = hold;
           for (int p = 0; p < kParameterCount; ++p) constants_shift[p] = std::sqrt(sum2[p]);
           if (hold[static_cast<std::size_t>(angle_index)] && estimate_angle) {
-            angle_std = stdOf(long_fit, angle_index);
+            angle_std = stdOf(joint_fit, angle_index);
             out.voltage_angle_from_long_window = true;
           }
           out.inverter_from_long_window = std::isfinite(inverter_long_relative_std);
