@@ -1249,6 +1249,11 @@ TEST(VoltageAngle, TheLongWindowsStepsAndSpeedChangeGiveTheAngleAndWithItLq) {
     EXPECT_NEAR(e.fit.voltage_angle, 0.5, 3.0 * e.fit.voltage_angle_std + 0.05) << label;  // k_p 1.5 against the delay's 1
     EXPECT_TRUE(e.identifiable[kLq]) << label << " " << e.reason[kLq];
     expectIdentifiedWithinStated(e, data.back().truth, label);
+    // R_s: 1.2 s with three current magnitudes leave it and the inverter's error voltage +-5 %
+    // apart; the reason names the voltage's share and what separates them.
+    EXPECT_FALSE(e.identifiable[kRs]) << label;
+    EXPECT_NE(e.reason[kRs].find("from the inverter's error voltage"), std::string::npos) << label << " " << e.reason[kRs];
+    EXPECT_NE(e.reason[kRs].find("current magnitudes further apart"), std::string::npos) << e.reason[kRs];
   }
 }
 
@@ -1422,9 +1427,11 @@ TEST(DriveModel, AShortLogsStepsBeforeTheSwitchStillSeparateTheDrivesConstants) 
     EXPECT_TRUE(e.fit.voltage_angle_from_long_window) << label;
     EXPECT_TRUE(e.identifiable[kRs]) << label << " " << e.reason[kRs];
     EXPECT_TRUE(e.identifiable[kLq]) << label << " " << e.reason[kLq];
-    for (int p = 0; p < kParameterCount; ++p)
-      if (e.identifiable[p])
+    for (int p = 0; p < kParameterCount; ++p) {
+      if (e.identifiable[p]) {
         EXPECT_LT(std::abs(e.parameters[p] / data.back().truth[p] - 1.0), 0.01) << label << " " << parameterNames()[p];
+      }
+    }
     // R_s within what it states (L_q: see doc/results.md, it sits up to 1.2 times its stated
     // uncertainty off in a few seeds of this drive).
     EXPECT_LT(std::abs(e.parameters[kRs] / data.back().truth[kRs] - 1.0), e.relative_uncertainty[kRs]) << label;

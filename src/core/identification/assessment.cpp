@@ -334,7 +334,8 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   if (estimate_angle && free_fit.determined[static_cast<std::size_t>(angle_index)])
     angle_std = free_fit.standard_deviation(angle_index);
   std::vector<bool> held(static_cast<std::size_t>(model.size()), false);  // the constants taken from the long window
-  ParameterVector constants_shift{};  // sqrt(sum over the held constants of (p(c + sigma_c) - p(c))^2) [SI]
+  ParameterVector angle_shift{};     // |p(a + sigma_a) - p(a)| with the angle held [SI]
+  ParameterVector inverter_shift{};  // |p(V + sigma_V) - p(V)| with V held [SI]
   double inverter_long_relative_std = std::numeric_limits<double>::infinity();
   if (estimate_angle || estimate_inverter) {
     WindowSums long_window = stats.longWindow();
@@ -373,18 +374,20 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
       if (!shifts.empty()) {
         const BlockFit known = BlockLeastSquares::fit(window, model, at, hold, a.variance_inflation);
         bool ok = known.ok;
-        ParameterVector sum2{};
+        ParameterVector moved_angle{}, moved_inverter{};
         for (const auto& [entry, sigma] : shifts) {
           Eigen::VectorXd moved = at;
           moved(entry) += sigma;
           const BlockFit shifted = BlockLeastSquares::fit(window, model, moved, hold, a.variance_inflation);
           ok = ok && shifted.ok;
-          for (int p = 0; p < kParameterCount && ok; ++p) sum2[p] += std::pow(shifted.beta(p) - known.beta(p), 2);
+          ParameterVector& into = entry == angle_index && estimate_angle ? moved_angle : moved_inverter;
+          for (int p = 0; p < kParameterCount && ok; ++p) into[p] = std::abs(shifted.beta(p) - known.beta(p));
         }
         if (ok) {
           f = known;
           held = hold;
-          for (int p = 0; p < kParameterCount; ++p) constants_shift[p] = std::sqrt(sum2[p]);
+          angle_shift = moved_angle;
+          inverter_shift = moved_inverter;
           if (hold[static_cast<std::size_t>(angle_index)] && estimate_angle) {
             angle_std = stdOf(joint_fit, angle_index);
             out.voltage_angle_from_long_window = true;
@@ -413,9 +416,25 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   for (int p = 0; p < kParameterCount; ++p) {
     out.optimum[p] = f.beta(p);
     out.determined[p] = f.determined[p];
-    out.relative_std[p] = std::hypot(f.standard_deviation(p), constants_shift[p]) / std::abs(f.beta(p));
+    out.relative_std[p] = std::hypot(f.standard_deviation(p), angle_shift[p], inverter_shift[p]) / std::abs(f.beta(p));
   }
   out.relative_std_known_timing = out.relative_std;
+  out.relative_std_known_inverter = out.relative_std;
+  if (estimate_inverter) {
+    // The same window with V and its shape held where the fit left them free (or without their
+    // uncertainty where the long window gave them): where a parameter is determined then and not
+    // otherwise, this data cannot tell it from the inverter's error voltage.
+    std::vector<bool> hold_inverter = held;
+    for (int j = 4; j < (with_bus ? 7 : 6); ++j) hold_inverter[static_cast<std::size_t>(j)] = true;
+    const BlockFit known = out.inverter_from_long_window
+                               ? f
+                               : BlockLeastSquares::fit(window, model, f.beta, hold_inverter, a.variance_inflation);
+    if (known.ok)
+      for (int p = 0; p < kParameterCount; ++p)
+        out.relative_std_known_inverter[p] =
+            std::hypot(known.standard_deviation(p), out.voltage_angle_from_long_window ? angle_shift[p] : 0.0) /
+            std::abs(known.beta(p));
+  }
   if (estimate_angle) {
     out.voltage_angle_modelled = true;
     out.voltage_angle = f.beta(angle_index);
@@ -618,6 +637,15 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
                ": at this operating point it cannot be told from the angle at which the inverter applies the "
                "voltage (an unrecorded angle prediction, a omega_e T_s); a load step or a speed change in the "
                "window separates them, or declare time.angle_prediction";
+      // The part of it the inverter's error voltage accounts for, named where it is a quarter of the variance or more.
+      const double known_inverter = a.confidence_sigmas * fit.relative_std_known_inverter[p];
+      const double from_inverter = std::sqrt(std::max(0.0, statistical * statistical - known_inverter * known_inverter));
+      if (fit.inverter_modelled && std::isfinite(statistical) && from_inverter >= 0.5 * statistical)
+        why += format("; +-%.3g %% of it (in quadrature) from the inverter's error voltage (%.3g V +-%.2g %%", 100 * from_inverter,
+                      fit.inverter_voltage, 100 * a.confidence_sigmas * fit.inverter_relative_std) +
+               (fit.inverter_from_long_window ? ", from the long window" : "") +
+               ": dead time and device drops), which acts as a resistance at any one current magnitude; current "
+               "magnitudes further apart (a load step, a d-axis injection) or a longer log separate them";
       continue;
     }
     if (!(a.min_relative_uncertainty + fit.sampling_floor <= limit)) {
