@@ -15,6 +15,7 @@
 #include "pmsm_param_id/io/config_error.hpp"
 #include "pmsm_param_id/io/log_format.hpp"
 #include "pmsm_param_id/io/sample_csv.hpp"
+#include "pmsm_param_id/io/thermal_state.hpp"
 #include "test_helpers.hpp"
 
 using namespace pmsm_param_id;
@@ -957,6 +958,82 @@ TEST(Thermal, ReferencesAreLearntAtADeclaredColdStart) {
   EXPECT_TRUE(e.identifiable[kRs]) << e.reason[kRs];
   EXPECT_TRUE(std::isnan(e.winding_temperature.value));
   EXPECT_TRUE(std::isnan(e.magnet_temperature.value));
+}
+
+// A node restarted on a hot motor: the references its cold start learnt come back from the thermal
+// state file and are not learnt again (the hot values would read as the reference temperature).
+TEST(Thermal, ReferencesKeptAcrossARestartGiveAHotMotorsTemperature) {
+  const std::string config_path = test_helpers::writeTemp("cold_restart.yaml", "thermal:\n  reference_temperature: 25.0\n");
+  IdentifierConfig c = loadIdentifierConfig(config_path);
+  c.method = "rls";
+  Scenario s = test_helpers::scenario("wc1_drive.yaml");
+  s.duration = 1.4;
+  s.R_s_scale = Profile::ramp(1.0, 1.1, 0.3, 0.45);  // +25.4 K after the cold start
+  const auto data = test_helpers::run(s);
+  const auto first = makeIdentifier(c);
+  std::vector<Sample> hot;  // what a node started at 0.8 s sees
+  for (const auto& d : data) {
+    if (d.sample.t < 0.6) first->process(d.sample);
+    else if (d.sample.t >= 0.8) hot.push_back(d.sample);
+  }
+  const LearntReferences learnt = first->learntReferences();
+  ASSERT_GT(learnt.R_s, 0.0);
+  ASSERT_GT(learnt.psi_f, 0.0);
+  EXPECT_NEAR(learnt.R_s, s.motor.R_s, 0.01 * s.motor.R_s);
+  EXPECT_GT(learnt.R_s_relative_uncertainty, 0.0);
+  EXPECT_TRUE(std::isfinite(learnt.R_s_learnt_at));
+  const std::string state = test_helpers::writeTemp("thermal_state.yaml", "");
+  writeThermalState(state, learnt, "rls");
+  const LearntReferences read = loadThermalStateFor(state, 25.0);
+  EXPECT_EQ(read, learnt);
+  EXPECT_EQ(read.R_s_learnt_at, learnt.R_s_learnt_at);
+  EXPECT_EQ(read.reference_temperature, 25.0);
+
+  const double truth = 25.0 + 0.1 / 3.93e-3;
+  const auto restarted = makeIdentifier(c);
+  restarted->restoreReferences(read);
+  for (const Sample& x : hot) restarted->process(x);
+  const Estimate e = restarted->estimate();
+  ASSERT_TRUE(std::isfinite(e.winding_temperature.value)) << e.reason[kRs];
+  EXPECT_LE(std::abs(e.winding_temperature.value - truth), e.winding_temperature.uncertainty) << e.winding_temperature.value;
+  EXPECT_EQ(restarted->learntReferences(), learnt);  // not learnt again
+  restarted->reset();                                 // a looping bag: the references stay
+  EXPECT_EQ(restarted->learntReferences(), learnt);
+  // Without the file the same restart learns the hot motor as cold: 25 K off.
+  const auto forgetful = makeIdentifier(c);
+  for (const Sample& x : hot) forgetful->process(x);
+  EXPECT_GT(std::abs(forgetful->estimate().winding_temperature.value - truth), 20.0);
+}
+
+TEST(Thermal, AStateFileFromAnotherReferenceTemperatureOrWithAnUnknownKeyIsRefused) {
+  const std::string state = test_helpers::writeTemp("state_other.yaml", "reference_temperature: 20\nR_s_at_reference: 2.9\n");
+  try {
+    loadThermalStateFor(state, 25.0);
+    FAIL() << "accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()), state + ": learnt at reference_temperature 20 degC, the config says 25 degC "
+                                             "(delete the file to learn anew at a cold start)");
+  }
+  EXPECT_FALSE(loadThermalStateFor(state + ".absent", 25.0).any());  // a first cold start
+  const std::string typo = test_helpers::writeTemp("state_typo.yaml", "reference_temperature: 20\nR_s_at_referense: 2.9\n");
+  EXPECT_THROW(readThermalState(typo), ConfigError);
+  IdentifierConfig no_thermal;
+  auto id = makeIdentifier(no_thermal);
+  EXPECT_THROW(id->restoreReferences(readThermalState(state)), ConfigError);
+}
+
+TEST(MotorConstants, TorqueAndSpeedConstantsFollowPsiFWithThePolePairs) {
+  const auto data = test_helpers::run(test_helpers::scenario("wc1_drive.yaml"));
+  IdentifierConfig c;
+  const Estimate unknown = identify(samplesOf(data), "rls", c);
+  ASSERT_TRUE(unknown.identifiable[kPsiF]) << unknown.reason[kPsiF];
+  EXPECT_TRUE(std::isnan(unknown.torque_constant));  // no pole pairs given
+  c.pole_pairs = 4;
+  const Estimate e = identify(samplesOf(data), "rls", c);
+  EXPECT_NEAR(e.torque_constant, 1.5 * 4 * 0.17858, 0.01 * 1.5 * 4 * 0.17858);
+  EXPECT_NEAR(e.speed_constant, 60.0 / (2 * M_PI * std::sqrt(3.0) * 4 * 0.17858), 0.01 * e.speed_constant);
+  EXPECT_GT(e.motor_constant_relative_uncertainty, 0.0);
+  EXPECT_EQ(loadError("motor:\n  pole_pairs: -1\n", false), "key 'motor.pole_pairs': must be an integer in [0, 1000], got -1");
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -53,6 +53,8 @@ struct FitCheck {
   std::array<bool, kParameterCount> determined{};
   double noise_std_d = 0.0;        ///< current noise estimated from the data (block differences) [A]
   double noise_std_q = 0.0;        ///< [A]
+  double block_noise_variance_d = 0.0;  ///< block-residual variance the noise explains [A^2]
+  double block_noise_variance_q = 0.0;  ///< [A^2]
   double fit_ratio_d = 0.0;        ///< mean r_d^2 at the optimum / what the noise explains [-]
   double fit_ratio_q = 0.0;        ///< [-]
   double optimum_fitness = 0.0;    ///< [A^2]

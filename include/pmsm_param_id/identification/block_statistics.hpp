@@ -45,6 +45,9 @@ struct WindowSettings {
   /// blocks this far apart [s]: a load step or a speed change then enters through every pair that
   /// straddles it, not one, while a thermal drift (minutes) still cancels. 0 = consecutive only.
   double long_difference_spacing = 0.2;
+  /// Forgetting of the slow window [s]: the fitness window's blocks (not differenced) averaged
+  /// over this, for R_s and psi_f on a thermal time scale (doc/algorithm.md section 9).
+  double slow_time_constant = 1.0;
   bool stationary_hold = false;            ///< the inverter holds the voltage in the stator frame
   double inverter_zero_crossing_current = 0.0;  ///< the inverter error passes zero as tanh(i / this) [A]; 0 = sign
   bool inverter_wide_shape = false;  ///< keep the twice-the-width shape column (the inverter model is on)
@@ -183,8 +186,11 @@ class BlockStatistics {
   void breakContinuity();
   /// Forget everything, including the nominal period.
   void reset();
-  /// Forget the long check window only (the motor changed: its old differences no longer apply).
+  /// Forget the long check window and the slow window (the motor changed: their old blocks no
+  /// longer apply).
   void resetLongWindow();
+  /// Forget the slow window only.
+  void resetSlowWindow();
 
   /// Mean squared block residual r_d^2 + r_q^2 [A^2] for parameters p; +inf before any block.
   /// Inline: the swarm calls it 20 times per sample.
@@ -299,6 +305,9 @@ class BlockStatistics {
   /// The long check window: differences of non-overlapping blocks (consecutive, and
   /// long_difference_spacing apart), long_time_constant.
   WindowSums longWindow() const;
+  /// The slow window: the fitness window's blocks averaged once more over slow_time_constant.
+  WindowSums slowWindow() const;
+  double slowTimeConstant() const { return settings_.slow_time_constant; }
   /// The logged speed against the logged angle's rate over the long window, sum |omega_e| dt /
   /// sum sign(omega_e) dtheta_e (1 when the speed's unit is right); NaN without the angle or before
   /// two electrical turns.
@@ -412,6 +421,13 @@ class BlockStatistics {
   double observer_i_d_ = 0.0, observer_i_q_ = 0.0;  // its currents at the last sample [A]
   double cross_L_dq_ = 0.0, cross_L_qq_ = 0.0;
   bool have_previous_block_ = false;
+  // The slow window (absolute non-overlapping blocks) and its offset terms.
+  ProductD slow_d_ = ProductD::Zero();
+  ProductQ slow_q_ = ProductQ::Zero();
+  OffsetProduct slow_N_ = OffsetProduct::Zero();
+  OffsetCrossD slow_C_d_ = OffsetCrossD::Zero();
+  OffsetCrossQ slow_C_q_ = OffsetCrossQ::Zero();
+  double slow_weight_ = 0.0, slow_lambda_ = 1.0;
   ProductD long_d_ = ProductD::Zero();
   ProductQ long_q_ = ProductQ::Zero();
   double long_weight_ = 0.0, long_lambda_ = 1.0;

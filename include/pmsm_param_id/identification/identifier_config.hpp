@@ -83,8 +83,10 @@ struct TimeSettings {
   double max_gap_periods = 3.0; ///< a step longer than this many nominal periods is a gap [-]
 };
 
-/// The inverter error's zero-crossing width the automatic drive model assumes [A] (that of
-/// config/identifiers/real_drive.yaml; the fitted shape mixes it with twice it).
+/// The inverter error's zero-crossing width the automatic drive model falls back to where the
+/// samples before the switch have no current to scale it by [A] (that of
+/// config/identifiers/real_drive.yaml; the fitted shape mixes it with twice it). Otherwise the
+/// width is chosen from the data (OnlineIdentifier::chooseZeroCrossingCurrent).
 constexpr double kAutomaticZeroCrossingCurrent = 0.3;
 
 struct IdentifierConfig {
@@ -94,6 +96,9 @@ struct IdentifierConfig {
   /// drive's model where the data show one (doc/algorithm.md section 8).
   bool automatic_drive_model = true;
   std::uint64_t seed = 1;
+  /// Pole pairs of the motor (motor.pole_pairs), for the torque and speed constants only; 0 =
+  /// unknown (everything else works in electrical quantities).
+  int pole_pairs = 0;
   SearchSettings search;
   WindowSettings window;
   SwarmSettings swarm;

@@ -15,6 +15,7 @@
 #include "pmsm_param_id/identification/block_statistics.hpp"
 #include "pmsm_param_id/identification/identifier_config.hpp"
 #include "pmsm_param_id/identification/sample_period.hpp"
+#include "pmsm_param_id/identification/slow_estimate.hpp"
 #include "pmsm_param_id/model/sample.hpp"
 
 namespace pmsm_param_id {
@@ -47,6 +48,17 @@ struct OperatingPoint {
   double i_q_spread = std::numeric_limits<double>::quiet_NaN();  ///< window standard deviation of i_q [A]
 };
 
+/// The slow estimates of an Estimate.
+struct SlowEstimate {
+  ParameterVector parameters{};  ///< the slow window's optimum (R_s, psi_f meaningful) [SI]
+  std::array<ParameterStatus, kParameterCount> status{};
+  std::array<std::string, kParameterCount> reason{};
+  std::array<bool, kParameterCount> identifiable{};
+  ParameterVector relative_uncertainty{};  ///< stated uncertainty / value [-]
+  double window_time_constant = 0.0;       ///< [s]
+  double t = std::numeric_limits<double>::quiet_NaN();  ///< stamp of the data the fit ended at [s]
+};
+
 struct Estimate {
   std::string method;
   double t = 0.0;                   ///< stamp of the last sample used [s]
@@ -63,8 +75,23 @@ struct Estimate {
   /// The drive model in use when the identifier chose it from the data (nothing declared, doc/
   /// algorithm.md section 8); empty while it is the configured one.
   std::string drive_model;
-  Temperature winding_temperature;  ///< from R_s while identified (thermal: block), else NaN [degC]
-  Temperature magnet_temperature;   ///< from psi_f while identified (thermal: block), else NaN [degC]
+  /// R_s and psi_f on the thermal time scale (slow_estimate.hpp): the slow window's exact fit,
+  /// the same for every method, with its own statuses (L_d, L_q: no_data, the fast path's).
+  SlowEstimate slow;
+  /// From the slow R_s while it is identified, else from R_s while identified (thermal: block),
+  /// else NaN [degC]; the uncertainty includes a learnt reference's.
+  Temperature winding_temperature;
+  /// From psi_f or the slow psi_f, whichever is identified with the smaller uncertainty [degC].
+  Temperature magnet_temperature;
+  /// The torque and speed constants drive users ask for, from psi_f (the fast or the slow one,
+  /// whichever is identified with the smaller uncertainty; NaN where neither is, or where
+  /// motor.pole_pairs is not given). Amplitude-invariant dq (as every estimate here):
+  ///   K_t = 1.5 p psi_f [N m/A] per ampere of phase-current amplitude (i_q),
+  ///   K_e = sqrt(3) p psi_f [V s/rad]: line-to-line back-EMF amplitude per mechanical rad/s,
+  ///   K_v = 60 / (2 pi K_e) [rpm/V]: the speed constant.
+  double torque_constant = std::numeric_limits<double>::quiet_NaN();  ///< K_t [N m/A]
+  double speed_constant = std::numeric_limits<double>::quiet_NaN();   ///< K_v [rpm/V]
+  double motor_constant_relative_uncertainty = std::numeric_limits<double>::quiet_NaN();  ///< psi_f's [-]
   OperatingPoint operating_point;   ///< means over the fitness window (its forgetting time constant)
   double fitness = 0.0;             ///< the method's fitness at the estimate [A^2] (block, or paper: section 10)
   double sample_period = 0.0;       ///< nominal sampling period in use [s] (0 while unknown)
@@ -92,6 +119,14 @@ class OnlineIdentifier {
   void reset();
 
   const IdentifierConfig& config() const { return config_; }
+  /// The thermal references a declared cold start learnt (or that were restored); zeros where
+  /// none yet. reference_temperature is the config's.
+  LearntReferences learntReferences() const;
+  /// References kept from an earlier run of the same motor (a restart: io/thermal_state.hpp).
+  /// They are taken instead of learning the present, perhaps hot, values as cold; one the config
+  /// declares stays declared. Kept through reset(). ConfigError where r was learnt at another
+  /// reference temperature than the config's.
+  void restoreReferences(const LearntReferences& r);
   const IdentifierCounters& counters() const { return counters_; }
   /// Current parameter vector only (cheaper than estimate()); NaN before the method starts.
   ParameterVector parameters() const { return started() ? current() : nanVector(); }
@@ -136,6 +171,9 @@ class OnlineIdentifier {
   void adoptExactFitTerms(const FitCheck& fit);
   /// Nothing about the drive declared: switches to the real drive's model where the data show one.
   void watchDriveModel();
+  /// The inverter error's zero-crossing width that fits the recent samples best (w: the new
+  /// drive model; fit: the present window's check, for its start values) [A].
+  double chooseZeroCrossingCurrent(const WindowSettings& w, const FitCheck& fit) const;
   void setBox(const ParameterVector& centre);
 
   IdentifierCounters counters_;
@@ -150,11 +188,22 @@ class OnlineIdentifier {
   bool have_watched_ = false;
   mutable std::uint64_t fit_blocks_ = ~0ull;  // block count of the cached fit
   mutable FitCheck fit_cache_;
-  mutable double learned_R_reference_ = 0.0, learned_psi_reference_ = 0.0;
+  // The thermal references learnt at a declared cold start (zeros until learnt), and those
+  // restored from an earlier run (kept through reset()).
+  mutable LearntReferences learnt_;
+  LearntReferences restored_;
   struct PendingReference {
     double t = -1.0, value = 0.0;  // a candidate reference and when it was seen
   };
   mutable PendingReference pending_R_reference_, pending_psi_reference_;
+  /// Refits the slow window (at most every slow_time_constant / 20 of data) with the fitness
+  /// window's fresh check.
+  void updateSlow(const FitCheck& fast);
+  DriveConstants drive_constants_;  // as the slow window determined them best
+  SlowFit slow_fit_;
+  double slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
+  std::deque<std::pair<double, ParameterVector>> slow_history_;  // (t, optimum) of consistent slow fits
+  ParameterVector slow_lag_{};  // |x(t) - x(t - tau)| / x: the window's lag behind a changing value [-]
   OperatingPoint operating_point_;         // exponentially forgotten means, as the fitness window
   double variance_i_d_ = 0.0, variance_i_q_ = 0.0;  // and the currents' variances (the spreads, when read)
   mutable double largest_operating_current_ = 0.0;  // [A], as the map's cells scale with it
@@ -181,6 +230,12 @@ class OnlineIdentifier {
 
 /// Samples kept for a drive-model change (2 s at 10 kHz; about 1.4 MB per identifier).
 constexpr std::size_t kDriveModelReplaySamples = 20000;
+/// Zero-crossing widths tried at a switch to the real drive's model: the currents' RMS down by
+/// halves.
+constexpr int kZeroCrossingCandidates = 8;
+/// A narrower candidate is taken where its slow window's residual is at most this fraction of the
+/// best wider one's.
+constexpr double kZeroCrossingRelevance = 0.95;
 
 /// Builds the identifier named by config.method. ConfigError on an unknown method or bad values.
 std::unique_ptr<OnlineIdentifier> makeIdentifier(const IdentifierConfig& config);

@@ -453,6 +453,8 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   }
   out.noise_std_d = std::sqrt(f.current_noise_variance_d);
   out.noise_std_q = std::sqrt(f.current_noise_variance_q);
+  out.block_noise_variance_d = f.noise_variance_d;
+  out.block_noise_variance_q = f.noise_variance_q;
   out.optimum_fitness = f.fitness();
   const ProductD& Sd = window.mean_d;
   const ProductQ& Sq = window.mean_q;

@@ -52,6 +52,7 @@ void BlockStatistics::reset() {
   long_N_.setZero();
   long_C_d_.setZero();
   long_C_q_.setZero();
+  resetSlowWindow();
   speed_travel_ = angle_travel_ = pending_speed_travel_ = pending_angle_travel_ = 0.0;
   bus_reference_ = std::numeric_limits<double>::quiet_NaN();
 }
@@ -74,6 +75,16 @@ void BlockStatistics::resetLongWindow() {
   have_long_block_ = false;
   long_history_.clear();
   long_history_head_ = 0;
+  resetSlowWindow();
+}
+
+void BlockStatistics::resetSlowWindow() {
+  slow_d_.setZero();
+  slow_q_.setZero();
+  slow_N_.setZero();
+  slow_C_d_.setZero();
+  slow_C_q_.setZero();
+  slow_weight_ = 0.0;
 }
 
 void BlockStatistics::configure(double nominal_period) {
@@ -89,6 +100,7 @@ void BlockStatistics::configure(double nominal_period) {
   block_samples_ = std::max(1, static_cast<int>(std::lround(block / nominal_period)));
   lambda_ = std::exp(-nominal_period / forgetting_time_constant_);
   long_lambda_ = std::exp(-block_samples_ * nominal_period / settings_.long_time_constant);
+  slow_lambda_ = std::exp(-block_samples_ * nominal_period / settings_.slow_time_constant);
   const double long_block = block_samples_ * nominal_period;  // one long-window block every block length [s]
   long_spacing_blocks_ = settings_.long_difference_spacing > 0
                              ? static_cast<int>(std::lround(settings_.long_difference_spacing / long_block))
@@ -617,6 +629,22 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
         long_C_q_.noalias() += share * dq * dn.transpose();
       }
     };
+    // The slow window: the fitness window's mean products (every block, overlapping, with its
+    // offset terms) averaged once more over slow_time_constant; the M blocks since the last
+    // update count as M blocks. (Non-overlapping blocks alone would hold a tenth of the noise
+    // averaging; each block added at every sample would cost a rank-one update per sample.)
+    if (stored_weight_ > 0) {
+      const double n = static_cast<double>(block_samples_);
+      const double k = n / stored_weight_;
+      slow_d_ = slow_lambda_ * slow_d_ + k * ProductD(S_d_.selfadjointView<Eigen::Upper>());
+      slow_q_ = slow_lambda_ * slow_q_ + k * ProductQ(S_q_.selfadjointView<Eigen::Upper>());
+      if (settings_.sensor_offsets) {
+        slow_N_ = slow_lambda_ * slow_N_ + k * N_;
+        slow_C_d_ = slow_lambda_ * slow_C_d_ + k * C_d_;
+        slow_C_q_ = slow_lambda_ * slow_C_q_ + k * C_q_;
+      }
+      slow_weight_ = slow_lambda_ * slow_weight_ + n;
+    }
     if (have_long_block_) {
       long_d_ *= long_lambda_;
       long_q_ *= long_lambda_;
@@ -769,6 +797,23 @@ WindowSums BlockStatistics::longWindow() const {
     w.mean_q = long_q_ / long_weight_;
   }
   w.weight = long_weight_;
+  w.block_duration = blockDuration();
+  w.block_samples = block_samples_;
+  return w;
+}
+
+WindowSums BlockStatistics::slowWindow() const {
+  WindowSums w;
+  if (slow_weight_ <= 0) return w;
+  if (settings_.sensor_offsets) {
+    const OffsetProduct pinv = offsetPseudoInverse(slow_N_, settings_.sensor_gains);
+    w.mean_d = projectOffsets(slow_d_, slow_C_d_, pinv) / slow_weight_;
+    w.mean_q = projectOffsets(slow_q_, slow_C_q_, pinv) / slow_weight_;
+  } else {
+    w.mean_d = slow_d_ / slow_weight_;
+    w.mean_q = slow_q_ / slow_weight_;
+  }
+  w.weight = slow_weight_;
   w.block_duration = blockDuration();
   w.block_samples = block_samples_;
   return w;

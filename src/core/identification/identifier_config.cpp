@@ -58,6 +58,8 @@ void validate(const IdentifierConfig& c, const std::string& source) {
     fail("window.long_difference_spacing", "must be a finite number >= 0 (0 = consecutive blocks only)");
   if (!(c.window.long_time_constant >= c.window.forgetting_time_constant))
     fail("window.long_time_constant", "must be at least window.forgetting_time_constant");
+  if (!(c.window.slow_time_constant >= c.window.forgetting_time_constant) || !std::isfinite(c.window.slow_time_constant))
+    fail("window.slow_time_constant", "must be finite and at least window.forgetting_time_constant");
   if (c.window.voltage_delay_samples < 0 || c.window.voltage_delay_samples > 1)
     fail("time.voltage_delay_samples", "must be 0 or 1");
   if (!(c.time.max_gap_periods > 1)) fail("time.max_gap_periods", "must be > 1");
@@ -97,6 +99,8 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   c.window.forgetting_time_constant = y.number("window.forgetting_time_constant", c.window.forgetting_time_constant);
   c.window.long_time_constant = y.positive("window.long_time_constant", c.window.long_time_constant);
   c.window.long_difference_spacing = y.number("window.long_difference_spacing", c.window.long_difference_spacing);
+  c.window.slow_time_constant = y.positive("window.slow_time_constant", c.window.slow_time_constant);
+  c.pole_pairs = static_cast<int>(y.integer("motor.pole_pairs", c.pole_pairs, 0, 1000));
   c.swarm.particles = static_cast<int>(y.integer("swarm.particles", c.swarm.particles, 2, 100000));
   c.swarm.c1 = y.number("swarm.c1", c.swarm.c1);
   c.swarm.c2 = y.number("swarm.c2", c.swarm.c2);
@@ -183,6 +187,7 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
     t.magnet_coefficient = y.number("thermal.magnet_coefficient", t.magnet_coefficient);
     if (!(t.magnet_coefficient < 0)) y.fail("thermal.magnet_coefficient", "must be < 0 [1/K] (magnets weaken when hot)");
     t.learning_time = y.positive("thermal.learning_time", t.learning_time);
+    t.max_uncertainty = y.positive("thermal.max_uncertainty", t.max_uncertainty);
   }
   AlarmSettings& al = c.alarms;
   al.winding_max_temperature = y.number("alarms.winding_max_temperature", al.winding_max_temperature);

@@ -1,6 +1,7 @@
 #include "pmsm_param_id/identification/online_identifier.hpp"
 
 #include "pmsm_param_id/identification/motor_map.hpp"
+#include "pmsm_param_id/io/config_error.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -177,13 +178,16 @@ void OnlineIdentifier::watchDriveModel() {
     w.voltage_delay_samples = delay;
     w.stationary_hold = true;
     w.estimate_voltage_angle = true;
-    w.inverter_zero_crossing_current = kAutomaticZeroCrossingCurrent;
     w.sensor_offsets = w.sensor_gains = angle_logged_;
+    w.inverter_wide_shape = true;
+    w.inverter_zero_crossing_current = chooseZeroCrossingCurrent(w, fit);
     config_.inverter.estimate_voltage = true;
     drive_model_switched_ = true;
     std::snprintf(buf, sizeof buf,
-                  "real drive, from the data at t = %.4g s: inverter voltage, voltage angle, stationary hold, delay %d%s",
-                  last_t_, w.voltage_delay_samples, angle_logged_ ? ", current-sensor offsets and gains" : "");
+                  "real drive, from the data at t = %.4g s: inverter voltage (zero-crossing width %.3g A), voltage angle, "
+                  "stationary hold, delay %d%s",
+                  last_t_, w.inverter_zero_crossing_current, w.voltage_delay_samples,
+                  angle_logged_ ? ", current-sensor offsets and gains" : "");
   } else {
     w.voltage_delay_samples = delayFrom(w.voltage_delay_samples);
     delay_flipped_ = true;
@@ -205,6 +209,82 @@ void OnlineIdentifier::watchDriveModel() {
   fit_blocks_ = ~0ull;
   broken_ = true;
   have_watched_ = false;
+  drive_constants_ = DriveConstants{};  // of the previous model's terms
+  slow_fit_ = SlowFit{};
+  slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
+  slow_history_.clear();
+}
+
+double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, const FitCheck& fit) const {
+  // The inverter error passes zero over the current ripple at the switching edges (about
+  // V_dc T_s / L: 0.1 A on a 36 mH, 540 V, 8 kHz drive, amperes on a 40 uH, 48 V, 20 kHz one), a
+  // constant of the drive that no log states. Too wide a shape reads part of the error as a
+  // resistance that changes with the current's magnitude (R_s +1 % at 6 A on the 36 mH drive with
+  // 0.3 A against 0.1 A). So the width is measured: the recent samples go through the statistics
+  // of each candidate, from the currents' RMS down by halves (the fitted shape mixes each width
+  // with twice it), and the one whose slow window the fit leaves the smallest residual is taken,
+  // a narrower one only where it leaves kZeroCrossingRelevance of the wider one's or less (the
+  // residual flattens out below the true width, and the shares then trade against each other).
+  // (The error of a width that is too narrow is a few per cent of V; of one too wide, a resistance.)
+  double sum2 = 0.0;
+  for (const RecentSample& r : recent_) sum2 += r.sample.i_d * r.sample.i_d + r.sample.i_q * r.sample.i_q;
+  const double rms = recent_.empty() ? 0.0 : std::sqrt(sum2 / static_cast<double>(recent_.size()));
+  if (!(rms > 0) || !std::isfinite(rms)) return kAutomaticZeroCrossingCurrent;
+  // Where no candidate gives a physical error (one operating point: V not determined), the middle
+  // of the range.
+  double best = rms * std::ldexp(1.0, -kZeroCrossingCandidates / 2), best_ratio = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < kZeroCrossingCandidates; ++k) {
+    WindowSettings candidate = w;
+    candidate.inverter_zero_crossing_current = rms * std::ldexp(1.0, -k);
+    BlockStatistics trial(candidate);
+    trial.configure(period_.nominal());
+    for (const RecentSample& r : recent_) {
+      if (r.continuity_broken) trial.breakContinuity();
+      trial.add(r.sample);
+    }
+    const FitCheck f = checkFit(trial, config_.assessment, fit.optimum, false, true, 0.0, false);
+    DriveConstants scratch;
+    const SlowFit slow = slowFit(trial, config_.assessment, f, scratch, last_t_);
+    // A width far beyond the ripple makes the shape a line through zero, a resistance: its two
+    // widths' shares then fit anything, V hundreds of volts either way. Only a physical error
+    // counts: V determined to 10 % and positive. (A negative wide share is not unphysical: it
+    // sharpens the narrow shape where the error's own width is narrower still.)
+    const bool physical = slow.available && slow.inverter_voltage > 0 && slow.inverter_relative_std < 0.1;
+    const double ratio = physical ? slow.fit_ratio_d + slow.fit_ratio_q : std::numeric_limits<double>::infinity();
+    if (ratio < kZeroCrossingRelevance * best_ratio) {  // a narrower width only where it fits clearly better
+      best_ratio = ratio;
+      best = candidate.inverter_zero_crossing_current;
+    }
+  }
+  return best;
+}
+
+LearntReferences OnlineIdentifier::learntReferences() const {
+  LearntReferences r = learnt_;
+  r.reference_temperature = config_.thermal.reference_temperature;
+  return r;
+}
+
+void OnlineIdentifier::restoreReferences(const LearntReferences& r) {
+  const ThermalSettings& th = config_.thermal;
+  if (!th.enabled) throw ConfigError("a thermal state needs a thermal: block in the identifier config");
+  if (!(std::abs(r.reference_temperature - th.reference_temperature) <= 1e-9))
+    throw ConfigError("the thermal state was learnt at another reference_temperature than the config's");
+  restored_ = r;
+  if (th.R_s_at_reference > 0) restored_.R_s = restored_.R_s_relative_uncertainty = 0.0;
+  if (th.psi_f_at_reference > 0) restored_.psi_f = restored_.psi_f_relative_uncertainty = 0.0;
+  // A parameter not in r is still learnt where the run is early enough; one in r is never learnt
+  // again.
+  if (restored_.R_s > 0) {
+    learnt_.R_s = restored_.R_s;
+    learnt_.R_s_relative_uncertainty = restored_.R_s_relative_uncertainty;
+    learnt_.R_s_learnt_at = restored_.R_s_learnt_at;
+  }
+  if (restored_.psi_f > 0) {
+    learnt_.psi_f = restored_.psi_f;
+    learnt_.psi_f_relative_uncertainty = restored_.psi_f_relative_uncertainty;
+    learnt_.psi_f_learnt_at = restored_.psi_f_learnt_at;
+  }
 }
 
 double OnlineIdentifier::temperature() const { return std::numeric_limits<double>::quiet_NaN(); }
@@ -230,7 +310,11 @@ void OnlineIdentifier::reset() {
   broken_ = true;
   noise_std_ = 0.0;
   fit_blocks_ = ~0ull;
-  learned_R_reference_ = learned_psi_reference_ = 0.0;
+  learnt_ = restored_;
+  drive_constants_ = DriveConstants{};
+  slow_fit_ = SlowFit{};
+  slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
+  slow_history_.clear();
   pending_R_reference_ = pending_psi_reference_ = PendingReference{};
   operating_point_ = OperatingPoint{};
   largest_operating_current_ = 0.0;
@@ -355,8 +439,8 @@ SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status
   // anybody asks for an estimate then (checked once per block length until both are learnt).
   const ThermalSettings& th = config_.thermal;
   const bool learning = th.enabled && s.t - first_sample_t_ <= th.learning_time &&
-                        ((th.R_s_at_reference == 0.0 && learned_R_reference_ == 0.0) ||
-                         (th.psi_f_at_reference == 0.0 && learned_psi_reference_ == 0.0));
+                        ((th.R_s_at_reference == 0.0 && learnt_.R_s == 0.0) ||
+                         (th.psi_f_at_reference == 0.0 && learnt_.psi_f == 0.0));
   if (learning && new_block && box_.valid && stats_.blocks() % static_cast<std::uint64_t>(stats_.blockSamples()) == 0)
     estimate();
   return status;
@@ -444,6 +528,7 @@ bool OnlineIdentifier::refreshSearchBox() {
   if (!fit.available) return false;
   noise_std_ = std::max(fit.noise_std_d, fit.noise_std_q);
   adoptExactFitTerms(fit);
+  updateSlow(fit);
   // A sudden change of the motor (a step of R_s, L_d, L_q or psi_f: a fault, a demagnetisation)
   // would read, in the long check window of differenced blocks, as a unit error for its whole
   // memory. When the model fits the window again and a well-determined optimum has moved by more
@@ -454,7 +539,8 @@ bool OnlineIdentifier::refreshSearchBox() {
       if (!(fit.determined[p] && std::isfinite(fit.relative_std[p]))) continue;
       const double change = std::abs(fit.optimum[p] / watched_optimum_[p] - 1.0);
       if (change > 0.02 && change > 5.0 * fit.relative_std[p]) {
-        stats_.resetLongWindow();
+        stats_.resetLongWindow();  // and the slow window
+        slow_history_.clear();
         break;
       }
     }
@@ -478,6 +564,50 @@ bool OnlineIdentifier::refreshSearchBox() {
   setBox(centre);
   searchBoxMoved();
   return true;
+}
+
+void OnlineIdentifier::updateSlow(const FitCheck& fast) {
+  const double tau = stats_.slowTimeConstant();
+  if (std::isfinite(slow_fit_t_) && last_t_ >= slow_fit_t_ && last_t_ - slow_fit_t_ < tau / 20) return;
+  slow_fit_ = slowFit(stats_, config_.assessment, fast, drive_constants_, last_t_);
+  slow_fit_t_ = last_t_;
+  slow_lag_.fill(std::numeric_limits<double>::infinity());
+  if (!(slow_fit_.available && slow_fit_.consistent)) return;
+  // The window's exponential average trails a value that changes at a steady rate by tau x the
+  // rate (an exponentially weighted fit of a ramp reads the ramp's value tau ago). The rate is the
+  // slope of a straight line through the window's own estimates over the last two tau; until the
+  // history spans 1.75 tau the lag is unknown (and nothing slow is identified). (The largest move
+  // within two tau, tried first, counts the estimates' own noise three times over again, on top of
+  // the statistical part; a step is caught below.)
+  while (!slow_history_.empty() && slow_history_.front().first < last_t_ - 2.0 * tau) slow_history_.pop_front();
+  if (!slow_history_.empty() && slow_history_.front().first <= last_t_ - 1.75 * tau) {
+    std::vector<std::pair<double, ParameterVector>> points(slow_history_.begin(), slow_history_.end());
+    points.emplace_back(last_t_, slow_fit_.optimum);
+    double t_mean = 0.0;
+    for (const auto& h : points) t_mean += h.first;
+    t_mean /= static_cast<double>(points.size());
+    double stt = 0.0;
+    for (const auto& h : points) stt += (h.first - t_mean) * (h.first - t_mean);
+    for (int p = 0; p < kParameterCount; ++p) {
+      double x_mean = 0.0, stx = 0.0;
+      for (const auto& h : points) x_mean += h.second[p];
+      x_mean /= static_cast<double>(points.size());
+      for (const auto& h : points) stx += (h.first - t_mean) * (h.second[p] - x_mean);
+      const double slope = stt > 0 ? stx / stt : 0.0;  // [unit/s]
+      slow_lag_[p] = tau * std::abs(slope) / std::abs(slow_fit_.optimum[p]);
+    }
+  }
+  slow_history_.emplace_back(last_t_, slow_fit_.optimum);
+  // A step (a demagnetisation, a fault) is followed by the fitness window within a few of its
+  // time constants, by the slow window only over its own: where the fitness window determines a
+  // parameter and lies further from the slow value than its own uncertainty, the excess is lag too.
+  if (fast.consistent)
+    for (int p = 0; p < kParameterCount; ++p) {
+      if (!fast.determined[p] || !std::isfinite(fast.relative_std[p])) continue;
+      const double apart = std::abs(slow_fit_.optimum[p] - fast.optimum[p]) / std::abs(slow_fit_.optimum[p]);
+      const double excess = apart - config_.assessment.confidence_sigmas * fast.relative_std[p];
+      if (std::isfinite(slow_lag_[p])) slow_lag_[p] = std::max(slow_lag_[p], excess);
+    }
 }
 
 Estimate OnlineIdentifier::estimate() const {
@@ -572,6 +702,23 @@ Estimate OnlineIdentifier::estimate() const {
     }
   }
   for (int p = 0; p < kParameterCount; ++p) e.identifiable[p] = e.status[p] == ParameterStatus::Identified;
+  {
+    const SlowAssessment slow = assessSlow(slow_fit_, config_.assessment, slow_lag_);
+    e.slow.parameters = slow_fit_.optimum;
+    e.slow.status = slow.status;
+    e.slow.reason = slow.reason;
+    e.slow.relative_uncertainty = slow.relative_uncertainty;
+    // A cause the fitness window's diagnosis names (a unit, the drive's timing, a decimated log)
+    // holds for the slow window's data too, whose own check may not see it.
+    if (!e.fit.consistent && e.fit.likely_cause_kind != MisfitCause::None)
+      for (int p : {kRs, kPsiF}) {
+        e.slow.status[p] = ParameterStatus::PoorFit;
+        e.slow.reason[p] = "the fitness window's fit names a cause that holds here too: " + e.fit.likely_cause;
+      }
+    for (int p = 0; p < kParameterCount; ++p) e.slow.identifiable[p] = e.slow.status[p] == ParameterStatus::Identified;
+    e.slow.window_time_constant = stats_.slowTimeConstant();
+    e.slow.t = slow_fit_t_;
+  }
   const ThermalSettings& th = config_.thermal;
   if (th.enabled) {
     // References: configured, or learnt at a declared cold start at reference_temperature: the
@@ -579,34 +726,78 @@ Estimate OnlineIdentifier::estimate() const {
     // parameter to the identification threshold with a consistent fit, within learning_time of the
     // first sample. A method that identifies late would otherwise take a hot motor's value.
     const bool early = e.t - first_sample_t_ <= th.learning_time;
-    const auto learnable = [&](int p) {
-      return early && e.fit.available && e.fit.consistent && e.fit.determined[p] &&
-             config_.assessment.confidence_sigmas * e.fit.relative_std[p] <= config_.assessment.max_relative_uncertainty &&
-             plausible(p, e.fit.optimum[p]);
+    // The value a reference is learnt from: the slow estimate where its fit holds and it states
+    // the parameter to half the temperature budget (max_uncertainty), else the fitness window's
+    // optimum where it determines the parameter to the identification threshold.
+    const auto learnable = [&](int p, double coefficient, double& value, double& uncertainty) {
+      if (!early) return false;
+      const ParameterStatus slow_status = e.slow.status[p];
+      if ((slow_status == ParameterStatus::Identified || slow_status == ParameterStatus::NotExcited) &&
+          e.slow.relative_uncertainty[p] <= 0.5 * th.max_uncertainty * std::abs(coefficient)) {
+        value = e.slow.parameters[p];
+        uncertainty = e.slow.relative_uncertainty[p];
+        return true;
+      }
+      if (!(e.fit.available && e.fit.consistent && e.fit.determined[p] && plausible(p, e.fit.optimum[p]))) return false;
+      value = e.fit.optimum[p];
+      uncertainty = std::max(config_.assessment.confidence_sigmas * e.fit.relative_std[p], config_.assessment.min_relative_uncertainty);
+      return uncertainty <= config_.assessment.max_relative_uncertainty;
     };
     // A value is taken once a second one, at least confirm_time later, agrees with it within the
     // identification threshold (a start-up transient can make a short window's optimum look
     // determined and yet be off: measured 15 % on R_s in a live run).
     const double confirm_time = 0.1;  // [s]
-    const auto learn = [&](int p, double configured, double& learned, PendingReference& pending) {
-      if (configured != 0.0 || learned != 0.0 || !learnable(p)) return;
-      const double value = e.fit.optimum[p];
-      if (pending.t < 0 || std::abs(value / pending.value - 1.0) > config_.assessment.max_relative_uncertainty) {
+    const auto learn = [&](int p, double coefficient, double configured, double& learned, double& learned_uncertainty,
+                           double& learned_t, PendingReference& pending) {
+      double value = 0.0, uncertainty = 0.0;
+      if (configured != 0.0 || learned != 0.0 || !learnable(p, coefficient, value, uncertainty)) return;
+      if (pending.t < 0 || std::abs(value / pending.value - 1.0) > std::max(uncertainty, config_.assessment.max_relative_uncertainty)) {
         pending = {e.t, value};  // (re)start: the first candidate, or one that moved
       } else if (e.t - pending.t >= confirm_time) {
         learned = value;
+        learned_uncertainty = uncertainty;
+        learned_t = e.t;
       }
     };
-    learn(kRs, th.R_s_at_reference, learned_R_reference_, pending_R_reference_);
-    learn(kPsiF, th.psi_f_at_reference, learned_psi_reference_, pending_psi_reference_);
-    const double R_ref = th.R_s_at_reference > 0 ? th.R_s_at_reference : learned_R_reference_;
-    const double psi_ref = th.psi_f_at_reference > 0 ? th.psi_f_at_reference : learned_psi_reference_;
-    if (e.identifiable[kRs])
-      e.winding_temperature = temperatureFrom(e.parameters[kRs], e.relative_uncertainty[kRs], R_ref,
-                                              th.reference_temperature, th.copper_coefficient);
-    if (e.identifiable[kPsiF])
-      e.magnet_temperature = temperatureFrom(e.parameters[kPsiF], e.relative_uncertainty[kPsiF], psi_ref,
-                                             th.reference_temperature, th.magnet_coefficient);
+    learn(kRs, th.copper_coefficient, th.R_s_at_reference, learnt_.R_s, learnt_.R_s_relative_uncertainty,
+          learnt_.R_s_learnt_at, pending_R_reference_);
+    learn(kPsiF, th.magnet_coefficient, th.psi_f_at_reference, learnt_.psi_f, learnt_.psi_f_relative_uncertainty,
+          learnt_.psi_f_learnt_at, pending_psi_reference_);
+    const double R_ref = th.R_s_at_reference > 0 ? th.R_s_at_reference : learnt_.R_s;
+    const double psi_ref = th.psi_f_at_reference > 0 ? th.psi_f_at_reference : learnt_.psi_f;
+    const double R_ref_u = th.R_s_at_reference > 0 ? 0.0 : learnt_.R_s_relative_uncertainty;
+    const double psi_ref_u = th.psi_f_at_reference > 0 ? 0.0 : learnt_.psi_f_relative_uncertainty;
+    // Each temperature from the estimate with the smaller stated uncertainty: the fast one where
+    // it is identified, the slow one where its fit holds (identified, or determined short of the
+    // 1 % a motor parameter needs: a winding temperature to a few kelvin is worth reporting);
+    // reported where its uncertainty is at most max_uncertainty.
+    const auto temperatureOf = [&](int p, double reference, double reference_u, double coefficient) {
+      const ParameterStatus slow_status = e.slow.status[p];
+      const bool slow_ok = (slow_status == ParameterStatus::Identified || slow_status == ParameterStatus::NotExcited) &&
+                           std::isfinite(e.slow.relative_uncertainty[p]);
+      const bool fast_ok = e.identifiable[p];
+      Temperature out;
+      if (!slow_ok && !fast_ok) return out;
+      const bool slow_better = slow_ok && (!fast_ok || e.slow.relative_uncertainty[p] <= e.relative_uncertainty[p]);
+      out = temperatureFrom(slow_better ? e.slow.parameters[p] : e.parameters[p],
+                            slow_better ? e.slow.relative_uncertainty[p] : e.relative_uncertainty[p], reference,
+                            th.reference_temperature, coefficient, reference_u);
+      if (!(out.uncertainty <= th.max_uncertainty)) out = Temperature{};
+      return out;
+    };
+    e.winding_temperature = temperatureOf(kRs, R_ref, R_ref_u, th.copper_coefficient);
+    e.magnet_temperature = temperatureOf(kPsiF, psi_ref, psi_ref_u, th.magnet_coefficient);
+  }
+  {  // K_t and K_v from the psi_f identified with the smaller uncertainty
+    const bool fast_ok = e.identifiable[kPsiF], slow_ok = e.slow.identifiable[kPsiF];
+    if (config_.pole_pairs > 0 && (fast_ok || slow_ok)) {
+      const bool slow_better = slow_ok && (!fast_ok || e.slow.relative_uncertainty[kPsiF] < e.relative_uncertainty[kPsiF]);
+      const double psi = slow_better ? e.slow.parameters[kPsiF] : e.parameters[kPsiF];
+      const double p = static_cast<double>(config_.pole_pairs);
+      e.torque_constant = 1.5 * p * psi;
+      e.speed_constant = 60.0 / (2.0 * M_PI * std::sqrt(3.0) * p * psi);
+      e.motor_constant_relative_uncertainty = slow_better ? e.slow.relative_uncertainty[kPsiF] : e.relative_uncertainty[kPsiF];
+    }
   }
   bool positive = true;
   for (double v : e.parameters) positive = positive && std::isfinite(v) && v > 0;
