@@ -235,6 +235,8 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
         mon["estimates"] = r.monitor.estimates;
         mon["winding_temperature_reported"] = r.monitor.winding_reported;
         mon["magnet_temperature_reported"] = r.monitor.magnet_reported;
+        mon["winding_temperature_outside_stated"] = r.monitor.winding_outside_stated;
+        mon["magnet_temperature_outside_stated"] = r.monitor.magnet_outside_stated;
         mon["fault_onset"] = numberOrNull(onset);
         mon["alarms"] = json::array();
         for (const AlarmEvent& ev : r.monitor.events)
@@ -261,6 +263,15 @@ int runBench(const std::string& scenario_path, int seeds, const std::string& met
         along["outside_stated"][name] = r.along.outside_stated[p];
         along["worst_error_over_stated"][name] = numberOrNull(r.along.identified[p] ? r.along.worst_over_stated[p] : NAN);
         map_json["worst_cell_error_percent"][name] = numberOrNull(r.along.map_worst[p]);
+      }
+      for (int p : {kRs, kPsiF}) {
+        const std::string name = parameterNames()[p];
+        along["slow"]["identified"][name] = r.along.slow_identified[p];
+        along["slow"]["wrong"][name] = r.along.slow_wrong[p];
+        along["slow"]["worst_error_percent"][name] = numberOrNull(r.along.slow_identified[p] ? r.along.slow_worst[p] : NAN);
+        along["slow"]["outside_stated"][name] = r.along.slow_outside_stated[p];
+        along["slow"]["worst_error_over_stated"][name] =
+            numberOrNull(r.along.slow_identified[p] ? r.along.slow_worst_over_stated[p] : NAN);
       }
       along["period"] = kEstimatePeriod;
       j["along_run"] = along;

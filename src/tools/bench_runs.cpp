@@ -72,6 +72,16 @@ RunResult runOne(const std::vector<SimulatedSample>& data, IdentifierConfig conf
       r.along.outside_stated[p] += !(over <= 1.0);
       r.along.worst_over_stated[p] = std::max(r.along.worst_over_stated[p], std::isfinite(over) ? over : INFINITY);
     }
+    for (int p : {kRs, kPsiF}) {
+      if (!e.slow.identifiable[p]) continue;
+      const double error = std::abs(errorPercent(e.slow.parameters[p], data[k].truth[p]));
+      ++r.along.slow_identified[p];
+      r.along.slow_wrong[p] += !(error <= 2.0);
+      r.along.slow_worst[p] = std::max(r.along.slow_worst[p], std::isfinite(error) ? error : INFINITY);
+      const double over = error / (100.0 * e.slow.relative_uncertainty[p]);
+      r.along.slow_outside_stated[p] += !(over <= 1.0);
+      r.along.slow_worst_over_stated[p] = std::max(r.along.slow_worst_over_stated[p], std::isfinite(over) ? over : INFINITY);
+    }
     const int cell = map.add(e);
     if (cell >= 0) {
       cell_truth.resize(map.cells().size(), ParameterVector{});
@@ -83,13 +93,19 @@ RunResult runOne(const std::vector<SimulatedSample>& data, IdentifierConfig conf
       ++m.estimates;
       if (std::isfinite(e.winding_temperature.value)) {
         ++m.winding_reported;
-        if (std::isfinite(data[k].winding_temperature))
-          m.winding_error.push_back(std::abs(e.winding_temperature.value - data[k].winding_temperature));
+        if (std::isfinite(data[k].winding_temperature)) {
+          const double error = std::abs(e.winding_temperature.value - data[k].winding_temperature);
+          m.winding_error.push_back(error);
+          m.winding_outside_stated += !(error <= e.winding_temperature.uncertainty);
+        }
       }
       if (std::isfinite(e.magnet_temperature.value)) {
         ++m.magnet_reported;
-        if (std::isfinite(data[k].magnet_temperature))
-          m.magnet_error.push_back(std::abs(e.magnet_temperature.value - data[k].magnet_temperature));
+        if (std::isfinite(data[k].magnet_temperature)) {
+          const double error = std::abs(e.magnet_temperature.value - data[k].magnet_temperature);
+          m.magnet_error.push_back(error);
+          m.magnet_outside_stated += !(error <= e.magnet_temperature.uncertainty);
+        }
       }
       for (const AlarmEvent& ev : condition.update(e)) m.events.push_back(ev);
     }

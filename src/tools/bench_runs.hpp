@@ -17,6 +17,7 @@ namespace pmsm_param_id::tool {
 struct MonitorResult {
   std::vector<double> winding_error, magnet_error;  ///< |estimated - true| [K] whenever reported
   int estimates = 0, winding_reported = 0, magnet_reported = 0;
+  int winding_outside_stated = 0, magnet_outside_stated = 0;  ///< reported, |error| > the stated uncertainty
   std::vector<AlarmEvent> events;
 };
 
@@ -27,6 +28,9 @@ struct AlongRunResult {
   std::array<int, kParameterCount> outside_stated{};        ///< of them |error| > their stated uncertainty
   ParameterVector worst{};                                  ///< largest |error| of an identified one [%]
   ParameterVector worst_over_stated{};                      ///< largest |error| / stated uncertainty [-]
+  /// The same for the slow estimates (R_s and psi_f; Estimate::slow).
+  std::array<int, kParameterCount> slow_identified{}, slow_wrong{}, slow_outside_stated{};
+  ParameterVector slow_worst{}, slow_worst_over_stated{};
   int map_cells = 0, map_cells_complete = 0;                ///< cells; with L_d, L_q, psi_f identified
   ParameterVector map_worst{};  ///< largest |error| of a cell's latest identified value vs the truth then [%]
   std::shared_ptr<const FluxTable> map_table;               ///< exported map (null when none)

@@ -42,6 +42,19 @@ void printMonitor(const std::vector<std::string>& methods, const std::vector<std
   };
   temperature_row("winding T |err| [K]", true);
   temperature_row("magnet T |err| [K]", false);
+  std::printf("\n%-26s", "T outside stated w/m");
+  for (std::size_t m = 0; m < methods.size(); ++m) {
+    double w_out = 0, w_rep = 0, m_out = 0, m_rep = 0;
+    for (const RunResult& r : results[m]) {
+      w_out += r.monitor.winding_outside_stated;
+      w_rep += r.monitor.winding_error.size();
+      m_out += r.monitor.magnet_outside_stated;
+      m_rep += r.monitor.magnet_error.size();
+    }
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.1f%% / %.1f%%", 100.0 * w_out / std::max(1.0, w_rep), 100.0 * m_out / std::max(1.0, m_rep));
+    std::printf("%-24s", buf);
+  }
   if (std::isfinite(onset)) std::printf("\nfault at t = %.4g s (first change of a fault profile)", onset);
   else std::printf("\nno fault in the scenario: every alarm is a false alarm");
   for (AlarmKind kind : {AlarmKind::WindingOverTemperature, AlarmKind::Demagnetisation, AlarmKind::ParameterJump,
@@ -77,7 +90,7 @@ void printMonitor(const std::vector<std::string>& methods, const std::vector<std
     }
   }
   std::printf("\n(temperatures: median over seeds of each seed's median |error| [worst seed], %% of estimates that"
-              " carried one;\n alarms: seeds that raised it after the fault, latency median [worst] from the fault,"
+              " carried one;\n outside stated: of the reported ones with a truth, |error| beyond the stated uncertainty;\n alarms: seeds that raised it after the fault, latency median [worst] from the fault,"
               " e = seeds that raised it before the fault)\n");
 }
 
@@ -201,6 +214,22 @@ void printAlongRun(const std::vector<std::string>& methods, const std::vector<st
     std::snprintf(buf, sizeof buf, "%d [%.2f]", outside, worst);
     std::printf("%-24s", buf);
   }
+  for (int p : {kRs, kPsiF}) {  // the slow window's R_s and psi_f (Estimate::slow)
+    std::printf("\n  %-20s", ("slow " + parameterNames()[p] + " w/i/o").c_str());
+    for (std::size_t m = 0; m < methods.size(); ++m) {
+      int wrong = 0, identified = 0, outside = 0;
+      double worst = 0.0;
+      for (const RunResult& r : results[m]) {
+        wrong += r.along.slow_wrong[p];
+        identified += r.along.slow_identified[p];
+        outside += r.along.slow_outside_stated[p];
+        if (r.along.slow_identified[p]) worst = std::max(worst, r.along.slow_worst[p]);
+      }
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "%d/%d/%d [%.2f%%]", wrong, identified, outside, worst);
+      std::printf("%-24s", buf);
+    }
+  }
   std::printf("\n  %-20s", "map cells (full)");
   for (std::size_t m = 0; m < methods.size(); ++m) {
     std::vector<double> cells, complete;
@@ -243,6 +272,7 @@ void printAlongRun(const std::vector<std::string>& methods, const std::vector<st
   std::printf("\n(wrong/ident.: estimates reported identified and > 2 %% off / reported identified, all seeds [worst |error|];"
               "\n outside stated: identified estimates, all four parameters, whose |error| exceeds their stated uncertainty"
               " [largest ratio];"
+              "\n slow w/i/o: the slow window's estimates > 2 %% off / identified / outside their stated uncertainty [worst |error|];"
               "\n map cells: cells of operating points (full: with L_d, L_q, psi_f identified) median [fewest]; worst cell: a cell's latest"
               "\n identified value against the truth when it was filed, median over seeds [worst]%s)\n",
               roundtrip ? ";\n round trip: RMS current difference, the same run re-simulated with the learnt map, median [worst]; "

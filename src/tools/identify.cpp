@@ -5,17 +5,27 @@
 
 #include "commands.hpp"
 #include "pmsm_param_id/identification/motor_map.hpp"
+#include "pmsm_param_id/io/config_error.hpp"
 #include "pmsm_param_id/io/sample_csv.hpp"
+#include "pmsm_param_id/io/thermal_state.hpp"
 #include "pmsm_param_id/model/flux_map.hpp"
 #include "tool_common.hpp"
 
 namespace pmsm_param_id::tool {
 
 int runIdentify(const std::string& csv, const std::string& method, const std::string& config_path, long seed,
-                const std::string& json_out, const LogFormat& format, const std::string& map_csv) {
+                const std::string& json_out, const LogFormat& format, const std::string& map_csv,
+                const std::string& thermal_state) {
   const IdentifierConfig config = configFor(config_path, method, seed);
+  if (!thermal_state.empty() && !config.thermal.enabled)
+    throw ConfigError("--thermal-state needs a thermal: block in the identifier config (--config)");
   const SampleLog log = readSampleCsv(csv, format);
   auto id = makeIdentifier(config);
+  const LearntReferences restored = loadThermalStateFor(thermal_state, config.thermal.reference_temperature);
+  if (restored.any()) {
+    id->restoreReferences(restored);
+    std::fprintf(stderr, "thermal references from %s (not learnt again)\n", thermal_state.c_str());
+  }
   MotorMap map(config.map);
   double next_map = -INFINITY;  // an estimate into the map every kEstimatePeriod of stamp time
   std::size_t warnings = 0;
@@ -38,6 +48,10 @@ int runIdentify(const std::string& csv, const std::string& method, const std::st
     return 2;
   }
   printEstimate(e, config.thermal.enabled);
+  if (!thermal_state.empty() && id->learntReferences().any() && id->learntReferences() != restored) {
+    writeThermalState(thermal_state, id->learntReferences(), config.method);
+    std::printf("thermal references written to %s\n", thermal_state.c_str());
+  }
   printMap(map);
   if (!json_out.empty()) writeJson(json_out, estimateJson(e));
   if (!map_csv.empty()) {

@@ -44,6 +44,9 @@ int main(int argc, char** argv) {
   ident->add_option("--fitness", tool::fitness_override, "block | paper | paper_one_step (swarm methods; overrides the config)");
   std::string map_csv;
   ident->add_option("--map-csv", map_csv, "write the map of the motor learnt from the log as a flux-map CSV");
+  std::string thermal_state;
+  ident->add_option("--thermal-state", thermal_state,
+                    "YAML of the thermal references a cold start learnt: read if it exists, written when learnt");
   std::string format_path, time_unit, speed_unit, current_unit, voltage_unit, dq_scaling;
   std::vector<std::string> column_names;
   int pole_pairs = 0;
@@ -111,7 +114,7 @@ int main(int argc, char** argv) {
       if (!dq_scaling.empty()) format.dq_scaling = dq_scaling;
       if (pole_pairs != 0) format.pole_pairs = pole_pairs;
       format.validate(format_path.empty() ? "command line" : format_path + " and the command line");
-      return tool::runIdentify(csv, method, config, seed, json_out, format, map_csv);
+      return tool::runIdentify(csv, method, config, seed, json_out, format, map_csv, thermal_state);
     }
     if (*bench) return tool::runBench(scenario, seeds, methods, config, json_out, reference, threads, monitor, map_roundtrip);
     if (*perf) return tool::runPerf(scenario, methods, config, std::max(1, repeat), json_out, paper_scenario, drive_scenario);

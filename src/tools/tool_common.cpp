@@ -53,11 +53,28 @@ json estimateJson(const Estimate& e) {
               {"speed_scale_long", numberOrNull(e.fit.speed_scale_long)},
               {"speed_unit_verified", e.fit.speed_unit_verified},
               {"likely_cause", e.fit.likely_cause.empty() ? json(nullptr) : json(e.fit.likely_cause)}};
+  {
+    json slow;
+    for (int p : {kRs, kPsiF}) {
+      const std::string& name = parameterNames()[p];
+      slow[name] = numberOrNull(e.slow.parameters[p]);
+      slow["identifiable"][name] = e.slow.identifiable[p];
+      slow["status"][name] = toString(e.slow.status[p]);
+      slow["reason"][name] = e.slow.reason[p];
+      slow["relative_uncertainty"][name] = numberOrNull(e.slow.relative_uncertainty[p]);
+    }
+    slow["window_time_constant"] = e.slow.window_time_constant;
+    slow["t"] = numberOrNull(e.slow.t);
+    j["slow"] = slow;
+  }
   j["sample_period"] = numberOrNull(e.sample_period);
   j["winding_temperature"] = numberOrNull(e.winding_temperature.value);
   j["winding_temperature_uncertainty"] = numberOrNull(e.winding_temperature.uncertainty);
   j["magnet_temperature"] = numberOrNull(e.magnet_temperature.value);
   j["magnet_temperature_uncertainty"] = numberOrNull(e.magnet_temperature.uncertainty);
+  j["torque_constant"] = numberOrNull(e.torque_constant);
+  j["speed_constant"] = numberOrNull(e.speed_constant);
+  j["motor_constant_relative_uncertainty"] = numberOrNull(e.motor_constant_relative_uncertainty);
   j["inverter_voltage"] = {{"value", numberOrNull(e.inverter_voltage)},
                            {"status", toString(e.inverter_status)},
                            {"reason", e.inverter_reason},
@@ -115,6 +132,9 @@ void printEstimate(const Estimate& e, bool thermal_enabled) {
                 e.fit.consistent ? "consistent with the noise" : "POOR", e.fit.fit_ratio_d, e.fit.fit_ratio_q,
                 e.fit.noise_std_d, e.fit.noise_std_q);
   if (!e.fit.likely_cause.empty()) std::printf("  likely cause: %s\n", e.fit.likely_cause.c_str());
+  for (int p : {kRs, kPsiF})
+    std::printf("  %-6s = %-12.6g %-3s %-13s slow window: %s\n", parameterNames()[p].c_str(), e.slow.parameters[p],
+                units[p], toString(e.slow.status[p]), e.slow.reason[p].c_str());
   const auto temperature = [](const char* name, const Temperature& t) {
     if (std::isfinite(t.value)) std::printf("  %s temperature = %.1f degC +- %.1f K\n", name, t.value, t.uncertainty);
     else std::printf("  %s temperature unknown (its parameter is not identified)\n", name);
@@ -123,6 +143,9 @@ void printEstimate(const Estimate& e, bool thermal_enabled) {
     temperature("winding", e.winding_temperature);
     temperature("magnet", e.magnet_temperature);
   }
+  if (std::isfinite(e.torque_constant))
+    std::printf("  torque constant K_t = %.5g N m/A, speed constant K_v = %.5g rpm/V (+-%.3g %%, from psi_f)\n",
+                e.torque_constant, e.speed_constant, 100 * e.motor_constant_relative_uncertainty);
   if (e.fit.inverter_modelled)
     std::printf("  inverter voltage = %.4g V %s %s\n", e.inverter_voltage, toString(e.inverter_status), e.inverter_reason.c_str());
   if (!e.drive_model.empty()) std::printf("  drive model: %s\n", e.drive_model.c_str());
