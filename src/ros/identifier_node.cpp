@@ -2,7 +2,9 @@
 
 #include <cmath>
 
+#include "pmsm_param_id/ActiveAlarms.h"
 #include "pmsm_param_id/ConditionEvent.h"
+#include "pmsm_param_id/io/thermal_state.hpp"
 #include "pmsm_param_id/io/config_error.hpp"
 
 namespace pmsm_param_id {
@@ -18,7 +20,15 @@ IdentifierNode::IdentifierNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
   }
   if (!isKnownMethod(config.method))
     throw ConfigError("parameter ~method: unknown method '" + config.method + "' (expected " + methodList() + ")");
+  if (pnh_.hasParam("pole_pairs")) {
+    const int pole_pairs = typedParam<int>(pnh_, "pole_pairs", 0);
+    if (pole_pairs < 0) throw ConfigError("parameter ~pole_pairs: must be >= 0 (0 = unknown)");
+    config.pole_pairs = pole_pairs;
+  }
   validate(config, config_path.empty() ? "parameters" : config_path);
+  thermal_state_ = typedParam<std::string>(pnh_, "thermal_state", "");
+  if (!thermal_state_.empty() && !config.thermal.enabled)
+    throw ConfigError("parameter ~thermal_state: needs a thermal: block in the identifier config (~config)");
   publish_period_ = typedParam<double>(pnh_, "publish_period", 1e-3);
   if (!(publish_period_ > 0)) throw ConfigError("parameter ~publish_period: must be > 0 [s]");
   timeout_ = typedParam<double>(pnh_, "timeout", 1.0);
@@ -33,11 +43,19 @@ IdentifierNode::IdentifierNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
   map_csv_ = typedParam<std::string>(pnh_, "map_csv", "");
 
   identifier_ = makeIdentifier(config);
+  saved_references_ = loadThermalStateFor(thermal_state_, config.thermal.reference_temperature);
+  if (saved_references_.any()) {
+    identifier_->restoreReferences(saved_references_);
+    ROS_INFO("thermal references from %s (R_s %.6g ohm, psi_f %.6g Wb at %.4g degC): not learnt again",
+             thermal_state_.c_str(), saved_references_.R_s, saved_references_.psi_f, saved_references_.reference_temperature);
+  }
   monitor_ = ConditionMonitor::forConfig(config);
   map_ = MotorMap(config.map);
   pub_map_ = pnh_.advertise<ParameterMap>("map", 1, true);
   pub_estimate_ = pnh_.advertise<ParameterEstimate>("estimate", 1000);
   pub_events_ = pnh_.advertise<ConditionEvent>("events", 100, true);
+  pub_active_ = pnh_.advertise<ActiveAlarms>("active_alarms", 1, true);
+  publishActiveAlarms(0.0);
   const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
   if (input == "batch")
     sub_ = nh_.subscribe("samples_batch", 1000, &IdentifierNode::onBatch, this, hints);
@@ -149,6 +167,42 @@ void IdentifierNode::publish() {
     pub_events_.publish(m);
     if (ev.raised) ROS_ERROR("alarm %s: %s", m.kind.c_str(), ev.text.c_str());
     else ROS_INFO("alarm %s cleared", m.kind.c_str());
+    if (ev.raised) active_alarms_[ev.kind] = ev;
+    else active_alarms_.erase(ev.kind);
+    publishActiveAlarms(ev.t);
+  }
+  saveThermalState();
+}
+
+void IdentifierNode::publishActiveAlarms(double t) {
+  ActiveAlarms m;
+  m.header.stamp = t > 0 ? clock_.stampOf(t) : ros::Time(0);
+  m.header.frame_id = frame_id_;
+  m.method = identifier_->method();
+  for (const auto& [kind, ev] : active_alarms_) {
+    ConditionEvent c;
+    c.header.stamp = clock_.stampOf(ev.t);
+    c.header.frame_id = frame_id_;
+    c.method = m.method;
+    c.kind = toString(kind);
+    c.raised = true;
+    c.text = ev.text;
+    m.active.push_back(c);
+  }
+  pub_active_.publish(m);
+}
+
+void IdentifierNode::saveThermalState() {
+  if (thermal_state_.empty()) return;
+  const LearntReferences now = identifier_->learntReferences();
+  if (!now.any() || now == saved_references_) return;
+  try {
+    writeThermalState(thermal_state_, now, identifier_->method());
+    saved_references_ = now;
+    ROS_INFO("thermal references learnt and written to %s (R_s %.6g ohm, psi_f %.6g Wb at %.4g degC)",
+             thermal_state_.c_str(), now.R_s, now.psi_f, now.reference_temperature);
+  } catch (const UserError& e) {
+    ROS_WARN_THROTTLE(10.0, "%s", e.what());
   }
 }
 

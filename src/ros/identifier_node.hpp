@@ -3,6 +3,7 @@
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <ros/ros.h>
 
+#include <map>
 #include <memory>
 #include <string>
 
@@ -25,6 +26,9 @@ class IdentifierNode {
   void consume(const Sample& s);
   void publish();
   void publishMap();
+  void publishActiveAlarms(double t);
+  /// Writes the learnt thermal references to thermal_state_ where they changed.
+  void saveThermalState();
   void onTimer(const ros::WallTimerEvent&);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
 
@@ -34,6 +38,7 @@ class IdentifierNode {
   ros::Subscriber sub_;
   ros::Publisher pub_estimate_;
   ros::Publisher pub_events_;
+  ros::Publisher pub_active_;
   ros::Publisher pub_map_;
   MotorMap map_;
   double map_publish_period_ = 1.0;  // [s] of stamp time
@@ -41,7 +46,9 @@ class IdentifierNode {
   std::string map_csv_;              // written with every map publication when set
   bool map_changed_ = false;
   ConditionMonitor monitor_;
-  std::vector<AlarmEvent> recent_events_;
+  std::map<AlarmKind, AlarmEvent> active_alarms_;  // raised and not cleared, as raised
+  std::string thermal_state_;                      // ~thermal_state: the file, or empty
+  LearntReferences saved_references_;              // as last read or written
   ros::WallTimer timer_;
   diagnostic_updater::Updater updater_;
   std::string frame_id_;

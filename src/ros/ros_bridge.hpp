@@ -145,6 +145,18 @@ inline ParameterEstimate toMessage(const Estimate& e, const ros::Time& stamp, co
   m.temperature = e.temperature;
   m.samples_used = e.counters.used;
   m.samples_skipped = e.counters.skipped();
+  m.slow_R_s = e.slow.parameters[kRs];
+  m.slow_psi_f = e.slow.parameters[kPsiF];
+  for (int k = 0; k < 2; ++k) {
+    const int p = k == 0 ? kRs : kPsiF;
+    m.slow_status[k] = static_cast<std::uint8_t>(e.slow.status[p]);
+    m.slow_status_reason[k] = e.slow.reason[p];
+    m.slow_relative_uncertainty[k] = e.slow.relative_uncertainty[p];
+  }
+  m.slow_window_time_constant = e.slow.window_time_constant;
+  m.torque_constant = e.torque_constant;
+  m.speed_constant = e.speed_constant;
+  m.motor_constant_relative_uncertainty = e.motor_constant_relative_uncertainty;
   return m;
 }
 
