@@ -233,9 +233,10 @@ constexpr std::size_t kDriveModelReplaySamples = 20000;
 /// Zero-crossing widths tried at a switch to the real drive's model: the currents' RMS down by
 /// halves.
 constexpr int kZeroCrossingCandidates = 8;
-/// A narrower candidate is taken where its slow window's residual is at most this fraction of the
-/// best wider one's.
-constexpr double kZeroCrossingRelevance = 0.95;
+/// A narrower candidate is taken where its slow window's residual is lower than the best wider
+/// one's by more than this many times the chance spread of a residual ratio over n blocks,
+/// sqrt(2 / n) (one width is as good as another until the data say otherwise).
+constexpr double kZeroCrossingSignificance = 3.0;
 
 /// Builds the identifier named by config.method. ConfigError on an unknown method or bad values.
 std::unique_ptr<OnlineIdentifier> makeIdentifier(const IdentifierConfig& config);

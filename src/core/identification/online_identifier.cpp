@@ -223,8 +223,10 @@ double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, cons
   // 0.3 A against 0.1 A). So the width is measured: the recent samples go through the statistics
   // of each candidate, from the currents' RMS down by halves (the fitted shape mixes each width
   // with twice it), and the one whose slow window the fit leaves the smallest residual is taken,
-  // a narrower one only where it leaves kZeroCrossingRelevance of the wider one's or less (the
-  // residual flattens out below the true width, and the shares then trade against each other).
+  // a narrower one only where its residual is lower by more than chance allows (the residual
+  // flattens out below the true width, and the shares then trade against each other; a 5 % margin
+  // was within chance: one seed of ten took a quarter of the width, and its L_d's zero-crossing
+  // term then grew to 20 %).
   // (The error of a width that is too narrow is a few per cent of V; of one too wide, a resistance.)
   double sum2 = 0.0;
   for (const RecentSample& r : recent_) sum2 += r.sample.i_d * r.sample.i_d + r.sample.i_q * r.sample.i_q;
@@ -251,7 +253,11 @@ double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, cons
     // sharpens the narrow shape where the error's own width is narrower still.)
     const bool physical = slow.available && slow.inverter_voltage > 0 && slow.inverter_relative_std < 0.1;
     const double ratio = physical ? slow.fit_ratio_d + slow.fit_ratio_q : std::numeric_limits<double>::infinity();
-    if (ratio < kZeroCrossingRelevance * best_ratio) {  // a narrower width only where it fits clearly better
+    // The slow window's blocks that count: its effective length, or the recent samples if fewer.
+    const double blocks = std::min(static_cast<double>(recent_.size()) / std::max(1, trial.blockSamples()),
+                                   2.0 * w.slow_time_constant / std::max(trial.blockDuration(), 1e-12));
+    const double relevance = 1.0 - kZeroCrossingSignificance * std::sqrt(2.0 / std::max(blocks, 1.0));
+    if (ratio < relevance * best_ratio) {  // a narrower width only where it fits clearly better
       best_ratio = ratio;
       best = candidate.inverter_zero_crossing_current;
     }
@@ -598,16 +604,6 @@ void OnlineIdentifier::updateSlow(const FitCheck& fast) {
     }
   }
   slow_history_.emplace_back(last_t_, slow_fit_.optimum);
-  // A step (a demagnetisation, a fault) is followed by the fitness window within a few of its
-  // time constants, by the slow window only over its own: where the fitness window determines a
-  // parameter and lies further from the slow value than its own uncertainty, the excess is lag too.
-  if (fast.consistent)
-    for (int p = 0; p < kParameterCount; ++p) {
-      if (!fast.determined[p] || !std::isfinite(fast.relative_std[p])) continue;
-      const double apart = std::abs(slow_fit_.optimum[p] - fast.optimum[p]) / std::abs(slow_fit_.optimum[p]);
-      const double excess = apart - config_.assessment.confidence_sigmas * fast.relative_std[p];
-      if (std::isfinite(slow_lag_[p])) slow_lag_[p] = std::max(slow_lag_[p], excess);
-    }
 }
 
 Estimate OnlineIdentifier::estimate() const {
@@ -703,7 +699,21 @@ Estimate OnlineIdentifier::estimate() const {
   }
   for (int p = 0; p < kParameterCount; ++p) e.identifiable[p] = e.status[p] == ParameterStatus::Identified;
   {
-    const SlowAssessment slow = assessSlow(slow_fit_, config_.assessment, slow_lag_);
+    // The lag as of this estimate: while the fitness window does not fit one set of parameters,
+    // something is changing faster than the slow window follows (a step of the motor, a
+    // transient), and its lag is unknown; where the fitness window determines a parameter and
+    // lies further from the slow value than its own uncertainty, the excess is lag too (a step
+    // is followed by the fitness window within a few of its time constants, by the slow window
+    // only over its own).
+    ParameterVector lag = slow_lag_;
+    if (e.fit.available && !e.fit.consistent) lag.fill(std::numeric_limits<double>::infinity());
+    if (e.fit.available && e.fit.consistent && slow_fit_.available)
+      for (int p = 0; p < kParameterCount; ++p) {
+        if (!e.fit.determined[p] || !std::isfinite(e.fit.relative_std[p]) || !std::isfinite(lag[p])) continue;
+        const double apart = std::abs(slow_fit_.optimum[p] - e.fit.optimum[p]) / std::abs(slow_fit_.optimum[p]);
+        lag[p] = std::max(lag[p], apart - config_.assessment.confidence_sigmas * e.fit.relative_std[p]);
+      }
+    const SlowAssessment slow = assessSlow(slow_fit_, config_.assessment, lag);
     e.slow.parameters = slow_fit_.optimum;
     e.slow.status = slow.status;
     e.slow.reason = slow.reason;
@@ -729,13 +739,18 @@ Estimate OnlineIdentifier::estimate() const {
     // The value a reference is learnt from: the slow estimate where its fit holds and it states
     // the parameter to half the temperature budget (max_uncertainty), else the fitness window's
     // optimum where it determines the parameter to the identification threshold.
+    // Within learning_time the motor is declared at reference_temperature: nothing thermal changes
+    // yet, so the slow window's lag is taken as none (its own estimates span no 1.75 tau so early).
+    SlowAssessment cold;
+    if (early) cold = assessSlow(slow_fit_, config_.assessment, ParameterVector{});
     const auto learnable = [&](int p, double coefficient, double& value, double& uncertainty) {
       if (!early) return false;
-      const ParameterStatus slow_status = e.slow.status[p];
+      const ParameterStatus slow_status = cold.status[p];
       if ((slow_status == ParameterStatus::Identified || slow_status == ParameterStatus::NotExcited) &&
-          e.slow.relative_uncertainty[p] <= 0.5 * th.max_uncertainty * std::abs(coefficient)) {
-        value = e.slow.parameters[p];
-        uncertainty = e.slow.relative_uncertainty[p];
+          e.slow.status[p] != ParameterStatus::PoorFit &&
+          cold.relative_uncertainty[p] <= 0.5 * th.max_uncertainty * std::abs(coefficient)) {
+        value = slow_fit_.optimum[p];
+        uncertainty = cold.relative_uncertainty[p];
         return true;
       }
       if (!(e.fit.available && e.fit.consistent && e.fit.determined[p] && plausible(p, e.fit.optimum[p]))) return false;
