@@ -1259,6 +1259,64 @@ TEST(Thermal, TemperaturesFollowTheSimulatorsThermalModel) {
   }
 }
 
+// The slow window on the switching-level industrial drive with nothing declared but a cold start:
+// the first 30 s of the duty cycle (a load step at 20 s heats the winding by about 15 K).
+TEST(SlowWindow, WindingTemperatureBehindASwitchingInverterLiesWithinItsStatedUncertainty) {
+  Scenario s = test_helpers::scenario("real_drive_duty_cycle.yaml");
+  s.duration = 30.0;
+  const auto data = test_helpers::run(s);
+  IdentifierConfig c = loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/cold_start.yaml"));
+  c.method = "rls";
+  auto id = makeIdentifier(c);
+  int estimates = 0, reported = 0, outside = 0, slow_rs_identified = 0;
+  double worst = 0.0;
+  const std::size_t stride = static_cast<std::size_t>(std::lround(0.01 / s.drive.sample_period));
+  for (std::size_t k = 0; k < data.size(); ++k) {
+    id->process(data[k].sample);
+    if (k % stride != stride - 1 || data[k].sample.t < 5.0) continue;
+    const Estimate e = id->estimate();
+    ++estimates;
+    slow_rs_identified += e.slow.identifiable[kRs];
+    if (!std::isfinite(e.winding_temperature.value)) continue;
+    ++reported;
+    const double error = std::abs(e.winding_temperature.value - data[k].winding_temperature);
+    worst = std::max(worst, error);
+    outside += !(error <= e.winding_temperature.uncertainty);
+  }
+  EXPECT_GT(data.back().winding_temperature, 30.0);  // it did heat
+  EXPECT_GE(reported, estimates / 4) << reported << " of " << estimates;
+  EXPECT_LE(outside, reported / 20) << outside << " of " << reported << " outside; worst " << worst << " K";
+  EXPECT_LT(worst, 6.0);
+  EXPECT_EQ(slow_rs_identified, 0);  // behind an inverter R_s is never identified by the slow window
+}
+
+// A 4 % psi_f fall within 0.2 s: the slow psi_f trails it and must not be identified meanwhile.
+TEST(SlowWindow, APsiFFallIsNotReportedIdentifiedByTheLaggingSlowWindow) {
+  Scenario s = test_helpers::scenario("real_drive_demagnetisation.yaml");
+  s.duration = 18.5;
+  const auto data = test_helpers::run(s);
+  IdentifierConfig c = loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/cold_start.yaml"));
+  c.method = "rls";
+  auto id = makeIdentifier(c);
+  int identified_after = 0, wrong = 0, outside_late = 0;
+  const std::size_t stride = static_cast<std::size_t>(std::lround(0.01 / s.drive.sample_period));
+  for (std::size_t k = 0; k < data.size(); ++k) {
+    id->process(data[k].sample);
+    if (k % stride != stride - 1 || data[k].sample.t < 13.0) continue;
+    const Estimate e = id->estimate();
+    if (!e.slow.identifiable[kPsiF]) continue;
+    identified_after += data[k].sample.t > 14.5;
+    const double error = std::abs(e.slow.parameters[kPsiF] / data[k].truth[kPsiF] - 1.0);
+    wrong += error > 0.02;
+    // Within the fitness window's time constant (50 ms) of the onset nothing in the data shows the
+    // fall yet (measured: 0.3-0.7 % off at a stated 0.21 % at 14.01-14.03 s); later, never.
+    outside_late += error > e.slow.relative_uncertainty[kPsiF] && data[k].sample.t > 14.05;
+  }
+  EXPECT_EQ(wrong, 0);
+  EXPECT_EQ(outside_late, 0);
+  EXPECT_GT(identified_after, 0);  // and it comes back once the window holds the new value
+}
+
 // The drive's angle prediction, which no log records (doc/algorithm.md section 8). The paper's
 // motor behind the average inverter model with ideal sensors, the voltage computed at t_k acting
 // on [t_k+1, t_k+2), turned at theta_k + k_p omega_e T_s; the window holds the load step at 0.55 s.
