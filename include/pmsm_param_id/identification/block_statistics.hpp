@@ -421,7 +421,10 @@ class BlockStatistics {
   double observer_i_d_ = 0.0, observer_i_q_ = 0.0;  // its currents at the last sample [A]
   double cross_L_dq_ = 0.0, cross_L_qq_ = 0.0;
   bool have_previous_block_ = false;
-  // The slow window (absolute non-overlapping blocks) and its offset terms.
+  /// The mean products of a window's sums (offsets projected out where they are estimated).
+  WindowSums windowOf(const ProductD& d, const ProductQ& q, const OffsetProduct& N, const OffsetCrossD& C_d,
+                      const OffsetCrossQ& C_q, double weight) const;
+  // The slow window (the fitness window's blocks averaged once more) and its offset terms.
   ProductD slow_d_ = ProductD::Zero();
   ProductQ slow_q_ = ProductQ::Zero();
   OffsetProduct slow_N_ = OffsetProduct::Zero();

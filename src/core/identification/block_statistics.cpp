@@ -785,38 +785,30 @@ WindowSums BlockStatistics::window() const {
   return w;
 }
 
-WindowSums BlockStatistics::longWindow() const {
+WindowSums BlockStatistics::windowOf(const ProductD& d, const ProductQ& q, const OffsetProduct& N, const OffsetCrossD& C_d,
+                                     const OffsetCrossQ& C_q, double weight) const {
   WindowSums w;
-  if (long_weight_ <= 0) return w;
+  if (weight <= 0) return w;
   if (settings_.sensor_offsets) {
-    const OffsetProduct pinv = offsetPseudoInverse(long_N_, settings_.sensor_gains);
-    w.mean_d = projectOffsets(long_d_, long_C_d_, pinv) / long_weight_;
-    w.mean_q = projectOffsets(long_q_, long_C_q_, pinv) / long_weight_;
+    const OffsetProduct pinv = offsetPseudoInverse(N, settings_.sensor_gains);
+    w.mean_d = projectOffsets(d, C_d, pinv) / weight;
+    w.mean_q = projectOffsets(q, C_q, pinv) / weight;
   } else {
-    w.mean_d = long_d_ / long_weight_;
-    w.mean_q = long_q_ / long_weight_;
+    w.mean_d = d / weight;
+    w.mean_q = q / weight;
   }
-  w.weight = long_weight_;
+  w.weight = weight;
   w.block_duration = blockDuration();
   w.block_samples = block_samples_;
   return w;
 }
 
+WindowSums BlockStatistics::longWindow() const {
+  return windowOf(long_d_, long_q_, long_N_, long_C_d_, long_C_q_, long_weight_);
+}
+
 WindowSums BlockStatistics::slowWindow() const {
-  WindowSums w;
-  if (slow_weight_ <= 0) return w;
-  if (settings_.sensor_offsets) {
-    const OffsetProduct pinv = offsetPseudoInverse(slow_N_, settings_.sensor_gains);
-    w.mean_d = projectOffsets(slow_d_, slow_C_d_, pinv) / slow_weight_;
-    w.mean_q = projectOffsets(slow_q_, slow_C_q_, pinv) / slow_weight_;
-  } else {
-    w.mean_d = slow_d_ / slow_weight_;
-    w.mean_q = slow_q_ / slow_weight_;
-  }
-  w.weight = slow_weight_;
-  w.block_duration = blockDuration();
-  w.block_samples = block_samples_;
-  return w;
+  return windowOf(slow_d_, slow_q_, slow_N_, slow_C_d_, slow_C_q_, slow_weight_);
 }
 
 ProductD BlockStatistics::meanProductD() const {
