@@ -1179,6 +1179,30 @@ TEST(Monitor, OnASaturatingMachineLoadStepsAreNotJumpsButAFaultIs) {
   EXPECT_LE(jump_at, 3.0);
 }
 
+TEST(Monitor, APsiFFallAcrossAGapInItsIdentifiedValuesIsJudgedByItsRate) {
+  // psi_f identified until 1 s, not identified for 1.1 s (a method following a step), then 4 %
+  // lower: 3.6 %/s, faster than heat allows. The same 4 % spread over 4 s (1 %/s) raises nothing.
+  const auto run = [](double gap_end) {
+    ConditionMonitor monitor;
+    Estimate e;
+    e.status.fill(ParameterStatus::Identified);
+    e.identifiable.fill(true);
+    e.relative_uncertainty.fill(0.001);
+    e.operating_point = {0.0, 5.0, 400.0, 0.1, 0.01};
+    e.parameters = {1.0, 0.004, 0.012, 0.17};
+    bool raised = false;
+    for (int k = 0; k <= 600; ++k) {
+      e.t = 0.01 * k;
+      e.identifiable[kPsiF] = e.t <= 1.0 || e.t >= gap_end;
+      if (e.t >= gap_end) e.parameters[kPsiF] = 0.17 * 0.96;
+      for (const AlarmEvent& ev : monitor.update(e)) raised = raised || (ev.kind == AlarmKind::Demagnetisation && ev.raised);
+    }
+    return raised;
+  };
+  EXPECT_TRUE(run(2.1));
+  EXPECT_FALSE(run(5.0));
+}
+
 TEST(Monitor, AStreamThatRestartsClearsItsAlarmsAndIsNotComparedWithTheOldOne) {
   // A looping bag: stamps go back to the start. Alarms raised by the first pass clear with a reason,
   // and the second pass's values are not compared with the first's (R_s 50 % higher after the

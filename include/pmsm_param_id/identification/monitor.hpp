@@ -25,6 +25,10 @@
 namespace pmsm_param_id {
 
 
+/// A fall of psi_f is judged by its rate against identified values up to this many jump windows
+/// old (beyond: the level test against the winding's temperature remains).
+constexpr double kDemagnetisationGapWindows = 5.0;
+
 enum class AlarmKind { WindingOverTemperature = 0, Demagnetisation = 1, ParameterJump = 2, FastDrift = 3 };
 const char* toString(AlarmKind k);  ///< "winding_over_temperature", "demagnetisation", ...
 
@@ -74,6 +78,8 @@ class ConditionMonitor {
     double t = -1.0, value = 0.0, i_q = 0.0;
   };
   std::array<LastValue, kParameterCount> last_{};
+  // Identified psi_f, one every jump_window / 20, over kDemagnetisationGapWindows jump windows.
+  std::deque<LastValue> psi_f_history_;
   double jump_at_ = -1.0;
   double last_t_ = -std::numeric_limits<double>::infinity();  // stamp of the last estimate [s]
 };
