@@ -34,6 +34,8 @@ IdentifierNode::IdentifierNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
   timeout_ = typedParam<double>(pnh_, "timeout", 1.0);
   if (!(timeout_ > 0)) throw ConfigError("parameter ~timeout: must be > 0 [s]");
   frame_id_ = typedParam<std::string>(pnh_, "frame_id", "");
+  bad_input_hold_ = typedParam<double>(pnh_, "bad_input_hold", 10.0);
+  if (!(bad_input_hold_ >= 0)) throw ConfigError("parameter ~bad_input_hold: must be >= 0 [s]");
   const std::string input = typedParam<std::string>(pnh_, "input", "batch");
   if (input != "batch" && input != "single")
     throw ConfigError("parameter ~input: must be 'batch' or 'single', got '" + input + "'");
@@ -248,15 +250,23 @@ void IdentifierNode::onTimer(const ros::WallTimerEvent&) {
 void IdentifierNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   const IdentifierCounters& c = identifier_->counters();
   const double silent = (ros::WallTime::now() - last_receive_).toSec();
+  // Bad input warns for bad_input_hold after the last of it, then the state of the data shows
+  // again (the counters keep the totals).
+  const std::uint64_t bad = c.skipped_nonfinite + dropped_ + c.gaps + c.time_resets + bad_messages_;
+  if (bad > bad_input_seen_) {
+    bad_input_seen_ = bad;
+    last_bad_input_ = ros::WallTime::now();
+  }
+  const bool bad_input_recent = bad > 0 && (ros::WallTime::now() - last_bad_input_).toSec() < bad_input_hold_;
   using diagnostic_msgs::DiagnosticStatus;
   if (received_ == 0 && silent > timeout_)
     stat.summaryf(DiagnosticStatus::WARN, "no samples received for %.1f s on %s", silent, sub_.getTopic().c_str());
   else if (silent > timeout_)
     stat.summaryf(DiagnosticStatus::WARN, "no samples for %.1f s", silent);
+  else if (bad_input_recent)
+    stat.summaryf(DiagnosticStatus::WARN, "running; some input was bad within the last %g s (see counters)", bad_input_hold_);
   else if (published_ == 0 && nonfinite_estimates_ > 0)
     stat.summary(DiagnosticStatus::WARN, "no estimate yet: the data do not determine the motor's scale (no current?)");
-  else if (c.skipped_nonfinite + dropped_ + c.gaps + c.time_resets + bad_messages_ > 0)
-    stat.summary(DiagnosticStatus::WARN, "running; some input was bad (see counters)");
   else
     stat.summary(DiagnosticStatus::OK, "running");
   const Estimate e = identifier_->estimate();

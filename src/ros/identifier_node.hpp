@@ -54,6 +54,9 @@ class IdentifierNode {
   std::string frame_id_;
   double publish_period_ = 1e-3;   // [s] of stamp time
   double timeout_ = 1.0;           // [s] of wall time without samples -> WARN
+  double bad_input_hold_ = 10.0;   // [s] of wall time a bad input keeps the diagnostics at WARN
+  std::uint64_t bad_input_seen_ = 0;  // bad inputs counted at the last diagnosis
+  ros::WallTime last_bad_input_;      // when the count last grew
   double next_publish_ = 0.0;
   double last_t_ = 0.0;
   bool unpublished_ = false;

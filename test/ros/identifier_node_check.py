@@ -106,6 +106,13 @@ class IdentifierNode(unittest.TestCase):
         self.assertTrue(self.wait_for(lambda: self.counters(name).get("samples received") == "350", 10),
                         str(self.counters(name)))
         self.assertEqual(self.counters(name)["time gaps"], "2")
+        # The warning for bad input holds for ~bad_input_hold (3 s here), then the data's own state
+        # shows again; the counters keep the totals.
+        self.assertIn("some input was bad", self.diag[name].message)
+        self.assertTrue(self.wait_for(lambda: "some input was bad" not in self.diag[name].message, 10),
+                        self.diag[name].message)
+        self.assertEqual(self.counters(name)["time gaps"], "2")
+        self.assertEqual(self.counters(name)["malformed messages"], "1")
 
     def test_no_samples_gives_a_warning(self):
         name = "silent: identifier"
