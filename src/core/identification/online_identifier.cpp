@@ -583,8 +583,8 @@ void OnlineIdentifier::updateSlow(const FitCheck& fast) {
   // rate (an exponentially weighted fit of a ramp reads the ramp's value tau ago). The rate is the
   // slope of a straight line through the window's own estimates over the last two tau; until the
   // history spans 1.75 tau the lag is unknown (and nothing slow is identified). (The largest move
-  // within two tau, tried first, counts the estimates' own noise three times over again, on top of
-  // the statistical part; a step is caught below.)
+  // within two tau would count the estimates' own noise again, three times over, on top of the
+  // statistical part; a step is caught in estimate(), against the fitness window.)
   while (!slow_history_.empty() && slow_history_.front().first < last_t_ - 2.0 * tau) slow_history_.pop_front();
   if (!slow_history_.empty() && slow_history_.front().first <= last_t_ - 1.75 * tau) {
     std::vector<std::pair<double, ParameterVector>> points(slow_history_.begin(), slow_history_.end());
