@@ -245,17 +245,13 @@ SlowAssessment assessSlow(const SlowFit& fit, const AssessmentSettings& a, const
             format(" (need %.3g %%)", 100 * limit);
       continue;
     }
-    // R_s with the inverter voltage carried over from other operating points: the average
-    // dead-time error changes with the current's ripple share, so V differs between load levels
-    // by more than any one window shows (measured: R_s 2.4 % off at a stated 0.7 % after a load
-    // step of the switching-level drive). Only a window that itself holds several current
-    // magnitudes separates them; the value still gives a temperature with its uncertainty.
-    // Across current magnitudes in the window, V still differs between them (measured: the slow
-    // R_s 1.3-2.7 % off at a stated +-0.7-1 % across load steps of the switching-level drive, the
-    // larger the closer the lighter load comes to the current's ripple), by an amount no window
-    // of one drive determines. So behind an inverter R_s is never identified here; its value
-    // gives the winding temperature with the stated uncertainty (bench: outside it in 1 % of
-    // the reported temperatures on that drive).
+    // Behind an inverter R_s is never identified here. The average dead-time error changes with
+    // the current's ripple share, so V differs between the window's current magnitudes (and more
+    // so from other operating points, where a held V was determined) by more than any one window
+    // shows, and that reads as a resistance (measured: the slow R_s 1.3-2.7 % off at a stated
+    // +-0.7-1 % across load steps of the switching-level drive). The value still gives the
+    // winding temperature with its stated uncertainty (bench: outside it in 0.9 % of the reported
+    // winding temperatures on that drive).
     if (p == kRs && fit.inverter_modelled) {
       st = ParameterStatus::NotExcited;
       why = format("+-%.3g %% ", 100 * out.relative_uncertainty[p]) +
@@ -263,8 +259,8 @@ SlowAssessment assessSlow(const SlowFit& fit, const AssessmentSettings& a, const
                                  "magnitudes; "
                                : "across the current magnitudes in the slow window; ") +
             "not identified behind an inverter: its error voltage changes with the current's ripple share, and that "
-            "reads as a resistance (a declared inverter voltage curve or a d-axis injection at standstill would separate "
-            "them); the winding temperature is given from it with its uncertainty";
+            "reads as a resistance (current magnitudes all well above the ripple, where the error voltage no longer "
+            "changes, would separate them); the winding temperature is given from it with its uncertainty";
       continue;
     }
     st = ParameterStatus::Identified;
