@@ -674,6 +674,14 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
       const bool method_is_off = distance > std::max(statistical, a.min_relative_uncertainty);
       st = method_is_off ? ParameterStatus::NotConverged : ParameterStatus::NotExcited;
       why = parts;
+      if (!method_is_off) {  // what would narrow it
+        static const char* const narrows[kParameterCount] = {
+            "current magnitudes further apart (a load change) or a longer log narrow it",
+            "a larger d-axis current change (injection) or a longer log narrows it",
+            "a load step or a speed change in the window, or a longer log, narrows it",
+            "a speed change or a longer log narrows it"};
+        why += std::string("; ") + narrows[p];
+      }
       continue;
     }
     st = ParameterStatus::Identified;
