@@ -334,9 +334,11 @@ class BlockStatistics {
     std::array<double, 3> phase;            // phase currents a, b, c (when theta_e is known)
   };
   /// `mid`: the phasor of the rotor angle at mid-period.
+  /// With `wide` (not null), the same integral of the shape over twice the width as well (from the
+  /// same tanh values: tanh(x) = 2 t / (1 + t^2) with t = tanh(x / 2)).
   void inverterShapeIntegral(const Cumulative& previous, const Cumulative& current, const Sample& s, double dt,
                              double width, const std::array<double, 3>& mid_bend, Phasor mid, double& int_d,
-                             double& int_q) const;
+                             double& int_q, std::array<double, 2>* wide = nullptr) const;
   /// One period of the inverter shape's current observer (advances its state): its phase currents
   /// at the sample, the period's integrals of the narrow and wide shapes along its path, and its
   /// currents' integrals less the trapezoid of the path's ends (what chords of the currents miss).
@@ -346,7 +348,9 @@ class BlockStatistics {
     double narrow_d = 0.0, narrow_q = 0.0, wide_d = 0.0, wide_q = 0.0;  // [s]
     double missed_d = 0.0, missed_q = 0.0;                              // [A s]
   };
-  ObservedPeriod observePeriod(const Cumulative& previous, const Sample& s, double dt, double angle_increment);
+  /// `at_sample`: the phasor of the sample's angle (the previous one's is in `previous`).
+  ObservedPeriod observePeriod(const Cumulative& previous, const Sample& s, double dt, double angle_increment,
+                               Phasor at_sample);
   void rescale();
   /// The projection is computed when a fit first reads it after new data (RLS, the EKF and the
   /// exact fit read it every few hundred samples, the swarm's fitness every sample).
@@ -391,7 +395,8 @@ class BlockStatistics {
   ProductD S_d_ = ProductD::Zero(), dS_d_ = ProductD::Zero();
   ProductQ S_q_ = ProductQ::Zero(), dS_q_ = ProductQ::Zero();
   // Sensor offsets (settings_.sensor_offsets): the offset entries' own sums and their cross sums
-  // with each axis, and the axis sums projected off them (what every fit then sees).
+  // with each axis, and the axis sums projected off them (what every fit then sees). N_ and slow_N_
+  // hold their upper triangle only.
   OffsetProduct N_ = OffsetProduct::Zero();
   OffsetCrossD C_d_ = OffsetCrossD::Zero();
   OffsetCrossQ C_q_ = OffsetCrossQ::Zero();

@@ -5,6 +5,7 @@
 #pragma once
 #include <cstdint>
 #include <deque>
+#include <optional>
 #include <utility>
 #include <limits>
 #include <memory>
@@ -172,8 +173,10 @@ class OnlineIdentifier {
   /// Nothing about the drive declared: switches to the real drive's model where the data show one.
   void watchDriveModel();
   /// The inverter error's zero-crossing width that fits the recent samples best (w: the new
-  /// drive model; fit: the present window's check, for its start values) [A].
-  double chooseZeroCrossingCurrent(const WindowSettings& w, const FitCheck& fit) const;
+  /// drive model; fit: the present window's check, for its start values) [A]. `chosen`, where
+  /// given, receives the recent samples' statistics with that width (empty where none fitted).
+  double chooseZeroCrossingCurrent(const WindowSettings& w, const FitCheck& fit,
+                                   std::optional<BlockStatistics>* chosen = nullptr) const;
   void setBox(const ParameterVector& centre);
 
   IdentifierCounters counters_;

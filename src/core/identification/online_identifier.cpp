@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <optional>
 
 namespace pmsm_param_id {
 
@@ -167,6 +168,7 @@ void OnlineIdentifier::watchDriveModel() {
     return std::clamp(present + static_cast<int>(std::lround(fit.misfit_delay)), 0, 1);
   };
   char buf[240];
+  std::optional<BlockStatistics> chosen;  // the chosen width's statistics of the recent samples
   if (!drive_model_switched_) {
     // The delay from the fit with the drive's effects (a log of the applied voltage fits 0, a log of
     // the reference most often 1): 0 only where it lies below half a sample by three standard
@@ -180,7 +182,7 @@ void OnlineIdentifier::watchDriveModel() {
     w.estimate_voltage_angle = true;
     w.sensor_offsets = w.sensor_gains = angle_logged_;
     w.inverter_wide_shape = true;
-    w.inverter_zero_crossing_current = chooseZeroCrossingCurrent(w, fit);
+    w.inverter_zero_crossing_current = chooseZeroCrossingCurrent(w, fit, &chosen);
     config_.inverter.estimate_voltage = true;
     drive_model_switched_ = true;
     std::snprintf(buf, sizeof buf,
@@ -197,12 +199,16 @@ void OnlineIdentifier::watchDriveModel() {
   }
   drive_model_note_ = buf;
   config_.window = w;
-  stats_ = BlockStatistics(windowFor(config_));
-  stats_.configure(period_.nominal());
-  // The recent samples again, through the new model's blocks (about 0.1 us each: 2 ms for 20 000).
-  for (const RecentSample& r : recent_) {
-    if (r.continuity_broken) stats_.breakContinuity();
-    stats_.add(r.sample);
+  if (chosen) {
+    stats_ = std::move(*chosen);
+  } else {
+    stats_ = BlockStatistics(windowFor(config_));
+    stats_.configure(period_.nominal());
+    // The recent samples again, through the new model's blocks (about 0.1 us each: 2 ms for 20 000).
+    for (const RecentSample& r : recent_) {
+      if (r.continuity_broken) stats_.breakContinuity();
+      stats_.add(r.sample);
+    }
   }
   box_ = SearchBox{};
   fit_cache_ = FitCheck{};
@@ -215,7 +221,8 @@ void OnlineIdentifier::watchDriveModel() {
   slow_history_.clear();
 }
 
-double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, const FitCheck& fit) const {
+double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, const FitCheck& fit,
+                                                   std::optional<BlockStatistics>* chosen) const {
   // The inverter error passes zero over the current ripple at the switching edges (about
   // V_dc T_s / L: 0.1 A on a 36 mH, 540 V, 8 kHz drive, amperes on a 40 uH, 48 V, 20 kHz one), a
   // constant of the drive that no log states. Too wide a shape reads part of the error as a
@@ -260,8 +267,10 @@ double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, cons
     if (ratio < relevance * best_ratio) {  // a narrower width only where it fits clearly better
       best_ratio = ratio;
       best = candidate.inverter_zero_crossing_current;
+      if (chosen) *chosen = std::move(trial);  // kept: the new model's statistics without another pass
     }
   }
+  if (chosen && !(best_ratio < std::numeric_limits<double>::infinity())) chosen->reset();  // the middle: replayed
   return best;
 }
 
