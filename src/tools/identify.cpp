@@ -1,10 +1,13 @@
 // pmsm_tool identify: R_s, L_d, L_q, psi_f (and the map of the motor) from a drive log.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include "commands.hpp"
 #include "pmsm_param_id/identification/motor_map.hpp"
+#include "pmsm_param_id/identification/steady_state.hpp"
 #include "pmsm_param_id/io/config_error.hpp"
 #include "pmsm_param_id/io/sample_csv.hpp"
 #include "pmsm_param_id/io/thermal_state.hpp"
@@ -13,13 +16,84 @@
 
 namespace pmsm_param_id::tool {
 
+namespace {
+// Telemetry: the steady-state fit of the whole log (identification/steady_state.hpp).
+int runSteadyState(const std::string& csv, const SampleLog& log, const IdentifierConfig& config,
+                   const std::string& method, const std::string& json_out) {
+  const SteadyStateFit f = fitSteadyState(log.samples, config);
+  if (!method.empty() && method != "steady_state")
+    std::fprintf(stderr, "%s: --method %s follows the current loop's own samples and does not apply to telemetry; "
+                 "the steady-state fit ran instead\n", csv.c_str(), method.c_str());
+  if (!f.note.empty()) {
+    std::fprintf(stderr, "%s: %s; no estimate\n", csv.c_str(), f.note.c_str());
+    return 2;
+  }
+  const Estimate& e = f.estimate;
+  std::printf("method %s (telemetry: averaged dq equations across operating points)\n", e.method.c_str());
+  const char* units[] = {"ohm", "H", "H", "Wb"};
+  for (int p = 0; p < kParameterCount; ++p)
+    std::printf("  %-6s = %-12.6g %-3s %-13s %s\n", parameterNames()[p].c_str(), e.parameters[p], units[p],
+                toString(e.status[p]), e.reason[p].c_str());
+  std::printf("  fit: %s; residual / noise %.3g (d) %.3g (q); voltage noise %.3g V (d) %.3g V (q)\n",
+              e.fit.consistent ? "consistent with the noise" : "POOR", e.fit.fit_ratio_d, e.fit.fit_ratio_q, f.noise_std_d,
+              f.noise_std_q);
+  if (!e.fit.likely_cause.empty()) std::printf("  likely cause: %s\n", e.fit.likely_cause.c_str());
+  std::printf("  inverter voltage = %.4g V %s %s (zero-crossing width %.3g A)\n", e.inverter_voltage,
+              toString(e.inverter_status), e.inverter_reason.c_str(), f.zero_crossing_current);
+  std::printf("  voltage timing (data's fit) = %.3g +- %.2g s: the applied vector turned by that times omega_e\n",
+              f.voltage_timing, f.voltage_timing_std);
+  std::printf("  operating points: i_d = %.4g A (spread %.2g), i_q = %.4g A (spread %.2g), mean omega_e = %.4g rad/s\n",
+              e.operating_point.i_d, e.operating_point.i_d_spread, e.operating_point.i_q, e.operating_point.i_q_spread,
+              e.operating_point.omega_e);
+  std::printf("  sampling period %.4g s; samples = %zu, steady = %zu, transients left out = %zu, non-finite = %llu, "
+              "gaps = %llu, time resets = %llu\n",
+              f.sample_period, f.samples, f.steady, f.transients, static_cast<unsigned long long>(e.counters.skipped_nonfinite),
+              static_cast<unsigned long long>(e.counters.gaps), static_cast<unsigned long long>(e.counters.time_resets));
+  if (!json_out.empty()) {
+    json j = estimateJson(e);
+    j["steady_state"] = {{"samples", f.samples}, {"steady", f.steady}, {"transients", f.transients},
+                         {"zero_crossing_current", f.zero_crossing_current},
+                         {"voltage_timing", numberOrNull(f.voltage_timing)},
+                         {"voltage_timing_std", numberOrNull(f.voltage_timing_std)}};
+    writeJson(json_out, j);
+  }
+  return 0;
+}
+}  // namespace
+
 int runIdentify(const std::string& csv, const std::string& method, const std::string& config_path, long seed,
                 const std::string& json_out, const LogFormat& format, const std::string& map_csv,
-                const std::string& thermal_state) {
-  const IdentifierConfig config = configFor(config_path, method, seed);
+                const std::string& thermal_state, const std::string& data_kind) {
+  const bool steady_method = method == "steady_state";
+  const IdentifierConfig config = configFor(config_path, steady_method ? std::string() : method, seed);
   if (!thermal_state.empty() && !config.thermal.enabled)
     throw ConfigError("--thermal-state needs a thermal: block in the identifier config (--config)");
+  if (data_kind != "auto" && data_kind != "current_loop" && data_kind != "telemetry")
+    throw ConfigError("--data: expected auto, current_loop or telemetry, got '" + data_kind + "'");
   const SampleLog log = readSampleCsv(csv, format);
+  // Telemetry or the current loop's own samples: from the sampling period (the median spacing),
+  // unless the user says which.
+  bool telemetry = data_kind == "telemetry" || steady_method;
+  if (data_kind == "auto" && !steady_method) {
+    std::vector<double> steps;
+    for (std::size_t k = 1; k < log.samples.size(); ++k) {
+      const double dt = log.samples[k].t - log.samples[k - 1].t;
+      if (dt > 0 && std::isfinite(dt)) steps.push_back(dt);
+    }
+    if (!steps.empty()) {
+      std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2), steps.end());
+      const double T = steps[steps.size() / 2];
+      telemetry = T > kTelemetryPeriod;
+      if (telemetry)
+        std::fprintf(stderr, "%s: sampled every %.3g s, slower than any current loop: telemetry, the steady-state fit "
+                     "(--data current_loop if the time column's unit is wrong instead: --time-unit)\n", csv.c_str(), T);
+    }
+  }
+  if (telemetry) {
+    if (!thermal_state.empty() || !map_csv.empty())
+      throw ConfigError("--thermal-state and --map-csv need the current loop's samples; this log is telemetry");
+    return runSteadyState(csv, log, config, method, json_out);
+  }
   auto id = makeIdentifier(config);
   const LearntReferences restored = loadThermalStateFor(thermal_state, config.thermal.reference_temperature);
   if (restored.any()) {

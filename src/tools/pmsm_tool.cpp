@@ -34,10 +34,20 @@ int main(int argc, char** argv) {
   sim->add_option("--csv", csv, "output CSV")->required();
   sim->add_option("--seed", seed, "override run.seed")->check(non_negative);
   sim->add_option("--duration", duration, "override run.duration [s]");
+  double telemetry_period = 0;
+  sim->add_option("--telemetry-period", telemetry_period,
+                  "write means over intervals of this many seconds instead (a drive's telemetry stream) [s]");
+  std::string sim_format;
+  double clock_start = 0;
+  sim->add_option("--format", sim_format, "write in this log format's layout (a shipped name: vesc, or a YAML file)");
+  sim->add_option("--clock-start", clock_start, "the log clock's reading at t = 0 [s] (e.g. seconds since midnight)");
 
   auto* ident = app.add_subcommand("identify", "identify R_s, L_d, L_q, psi_f from a drive log");
   ident->add_option("--csv", csv, "log with header t,u_d,u_q,i_d,i_q,omega_e")->required();
-  ident->add_option("--method", method, "fbdapso|sapso|pso|ekf|rls (overrides the config)");
+  ident->add_option("--method", method, "fbdapso|sapso|pso|ekf|rls|wls|steady_state (overrides the config)");
+  std::string data_kind = "auto";
+  ident->add_option("--data", data_kind,
+                    "auto | current_loop | telemetry (auto: telemetry where the log is sampled slower than 2 ms)");
   ident->add_option("--config", config, "identifier YAML (bounds, initial values, tuning)");
   ident->add_option("--seed", seed, "random seed (swarm methods)")->check(non_negative);
   ident->add_option("--json", json_out, "write the final estimate as JSON");
@@ -97,7 +107,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    if (*sim) return tool::runSimulate(scenario, csv, seed, duration);
+    if (*sim) return tool::runSimulate(scenario, csv, seed, duration, telemetry_period, sim_format, clock_start);
     if (*ident) {
       LogFormat format = format_path.empty() ? LogFormat{} : loadLogFormat(format_path);
       for (const std::string& c : column_names) {
@@ -114,7 +124,7 @@ int main(int argc, char** argv) {
       if (!dq_scaling.empty()) format.dq_scaling = dq_scaling;
       if (pole_pairs != 0) format.pole_pairs = pole_pairs;
       format.validate(format_path.empty() ? "command line" : format_path + " and the command line");
-      return tool::runIdentify(csv, method, config, seed, json_out, format, map_csv, thermal_state);
+      return tool::runIdentify(csv, method, config, seed, json_out, format, map_csv, thermal_state, data_kind);
     }
     if (*bench) return tool::runBench(scenario, seeds, methods, config, json_out, reference, threads, monitor, map_roundtrip);
     if (*perf) return tool::runPerf(scenario, methods, config, std::max(1, repeat), json_out, paper_scenario, drive_scenario);

@@ -97,6 +97,9 @@ struct FitCheck {
   /// drive's timing were known); where this is within the limit and relative_std is not, the
   /// parameter cannot be told from the drive's timing in this window.
   ParameterVector relative_std_known_timing{};
+  /// Per parameter: the model's own systematic error (an inverter model's spread: what moving V by
+  /// it moves the parameter by), added to the stated uncertainty [-]; zero where not assessed.
+  ParameterVector model_floor{};
   /// Per parameter: the relative std with the inverter voltage and its shape held at their
   /// estimate (its own uncertainty left out): where this is within the limit and relative_std is
   /// not, the parameter (R_s) cannot be told from the inverter's error voltage in this data.

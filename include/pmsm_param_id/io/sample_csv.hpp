@@ -20,6 +20,12 @@ struct SampleLog {
 /// (written to a temporary name in the same folder, then renamed). Throws std::runtime_error.
 void writeSampleCsv(const std::string& path, const std::vector<SimulatedSample>& samples);
 
+/// The same in another drive's layout (`format`: its column names, units, separator, dq scaling and
+/// clock; a quantity without a column is left out), the truth columns R_s,L_d,L_q,psi_f appended.
+/// clock_start: the clock's reading at t = 0, in s (a ms_today clock: the seconds since midnight).
+void writeSampleCsv(const std::string& path, const std::vector<SimulatedSample>& samples, const LogFormat& format,
+                    double clock_start = 0.0);
+
 /// Reads a log. Extra columns are ignored. A missing column, a row with the wrong number of cells
 /// or a non-numeric cell throws InputError naming the file and line. "nan"/"inf" cells are kept
 /// as non-finite values so that the identifier can skip and count them.

@@ -616,7 +616,7 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
     const double distance = std::abs(v - fit.optimum[p]) / std::abs(v);
     const double crossing = p == kLd ? fit.crossing_floor : 0.0;
     out.relative_uncertainty[p] =
-        std::max(statistical + distance, a.min_relative_uncertainty) + fit.sampling_floor + crossing;
+        std::max(statistical + distance, a.min_relative_uncertainty) + fit.sampling_floor + crossing + fit.model_floor[p];
     if (!fit.consistent) {
       st = ParameterStatus::PoorFit;
       why = format("the model does not fit the data: block residual %.3g (d) / %.3g (q) times what the noise explains",
@@ -670,6 +670,7 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
           format(" + distance to the data's optimum %.3g %%", 100 * distance) +
           (fit.sampling_floor > 0 ? format(" + sampling +-%.3g %%", 100 * fit.sampling_floor) : std::string()) +
           (crossing > 0 ? format(" + zero crossings within a period +-%.3g %%", 100 * crossing) : std::string()) +
+          (fit.model_floor[p] > 0 ? format(" + the inverter model's own error +-%.3g %%", 100 * fit.model_floor[p]) : std::string()) +
           format(" (need %.3g %%)", 100 * limit);
       const bool method_is_off = distance > std::max(statistical, a.min_relative_uncertainty);
       st = method_is_off ? ParameterStatus::NotConverged : ParameterStatus::NotExcited;

@@ -3,12 +3,16 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <functional>
+#include <limits>
 #include <map>
 #include <sstream>
+#include <utility>
 #include <stdexcept>
 
 #include "pmsm_param_id/io/config_error.hpp"
@@ -25,6 +29,46 @@ void writeSampleCsv(const std::string& path, const std::vector<SimulatedSample>&
     std::fprintf(f, "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", x.t, x.u_d, x.u_q,
                  x.i_d, x.i_q, x.omega_e, x.theta_e, x.v_dc, s.truth[kRs], s.truth[kLd], s.truth[kLq], s.truth[kPsiF]);
   }
+  const bool ok = std::ferror(f) == 0;
+  if (std::fclose(f) != 0 || !ok || std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw std::runtime_error(path + ": write failed");
+  }
+}
+
+void writeSampleCsv(const std::string& path, const std::vector<SimulatedSample>& samples, const LogFormat& format,
+                    double clock_start) {
+  format.validate("log format");
+  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  FILE* f = std::fopen(tmp.c_str(), "w");
+  if (!f) throw std::runtime_error(path + ": cannot write (" + std::string(std::strerror(errno)) + ")");
+  // (quantity, file value from a sample)
+  std::vector<std::pair<std::string, std::function<double(const SimulatedSample&)>>> columns;
+  const auto add = [&](const char* quantity, std::function<double(const SimulatedSample&)> value) {
+    const auto it = format.columns.find(quantity);
+    if (it != format.columns.end() && !it->second.empty()) columns.emplace_back(it->second, std::move(value));
+  };
+  add("t", [&](const SimulatedSample& s) {
+    double t = (clock_start + s.sample.t) / format.timeFactor();
+    if (format.time_wraps_at > 0) t = std::fmod(t, format.time_wraps_at);
+    return t;
+  });
+  add("u_d", [&](const SimulatedSample& s) { return s.sample.u_d / format.voltageFactor(); });
+  add("u_q", [&](const SimulatedSample& s) { return s.sample.u_q / format.voltageFactor(); });
+  add("i_d", [&](const SimulatedSample& s) { return s.sample.i_d / format.currentFactor(); });
+  add("i_q", [&](const SimulatedSample& s) { return s.sample.i_q / format.currentFactor(); });
+  add("omega_e", [&](const SimulatedSample& s) { return s.sample.omega_e / format.speedFactor(); });
+  if (std::isfinite(samples.empty() ? NAN : samples.front().sample.theta_e))
+    add("theta_e", [&](const SimulatedSample& s) { return s.sample.theta_e / format.angleFactor(); });
+  if (std::isfinite(samples.empty() ? NAN : samples.front().sample.v_dc))
+    add("v_dc", [&](const SimulatedSample& s) { return s.sample.v_dc / format.busVoltageFactor(); });
+  for (int p = 0; p < kParameterCount; ++p)
+    columns.emplace_back(parameterNames()[p], [p](const SimulatedSample& s) { return s.truth[p]; });
+  for (std::size_t c = 0; c < columns.size(); ++c)
+    std::fprintf(f, "%s%c", columns[c].first.c_str(), c + 1 < columns.size() ? format.separator : '\n');
+  for (const SimulatedSample& s : samples)
+    for (std::size_t c = 0; c < columns.size(); ++c)
+      std::fprintf(f, "%.17g%c", columns[c].second(s), c + 1 < columns.size() ? format.separator : '\n');
   const bool ok = std::ferror(f) == 0;
   if (std::fclose(f) != 0 || !ok || std::rename(tmp.c_str(), path.c_str()) != 0) {
     std::remove(tmp.c_str());
@@ -51,16 +95,16 @@ bool readLine(std::istream& in, std::vector<char>& buffer, std::string& line, st
   return true;
 }
 
-std::vector<std::string> splitCells(const std::string& line) {
+std::vector<std::string> splitCells(const std::string& line, char separator) {
   std::vector<std::string> cells;
   std::stringstream ss(line);
   std::string cell;
-  while (std::getline(ss, cell, ',')) {
+  while (std::getline(ss, cell, separator)) {
     const auto b = cell.find_first_not_of(" \t\r");
     const auto e = cell.find_last_not_of(" \t\r");
     cells.push_back(b == std::string::npos ? std::string() : cell.substr(b, e - b + 1));
   }
-  if (!line.empty() && line.back() == ',') cells.emplace_back();
+  if (!line.empty() && line.back() == separator) cells.emplace_back();
   return cells;
 }
 }  // namespace
@@ -81,12 +125,13 @@ SampleLog readSampleCsv(const std::string& path, const LogFormat& format) {
     throw InputError(path + ": empty file (expected a header t,u_d,u_q,i_d,i_q,omega_e)");
   // A UTF-8 byte-order mark (spreadsheet exports write one) is not part of the first column's name.
   if (line_no == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
-  const std::vector<std::string> header = splitCells(line);
+  const std::vector<std::string> header = splitCells(line, format.separator);
   std::map<std::string, std::size_t> column;
   for (std::size_t i = 0; i < header.size(); ++i) column[header[i]] = i;
   const char* required[] = {"t", "u_d", "u_q", "i_d", "i_q", "omega_e"};
   std::size_t index[6];
-  for (int i = 0; i < 6; ++i) {
+  const bool timed = !format.columns.at("t").empty();  // else the rows are sample_period apart
+  for (int i = timed ? 0 : 1; i < 6; ++i) {
     const std::string& name = format.columns.at(required[i]);
     const auto it = column.find(name);
     if (it == column.end())
@@ -124,15 +169,21 @@ SampleLog readSampleCsv(const std::string& path, const LogFormat& format) {
                        text + "'");
     return v;  // nan/inf parse and are returned as such
   };
+  double wraps = 0.0;  // whole wraps of the time column so far [its unit]
+  double last_raw_t = std::numeric_limits<double>::quiet_NaN();
   while (readLine(in, buffer, line, line_no + 1, path)) {
     ++line_no;
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    const std::vector<std::string> cells = splitCells(line);
+    const std::vector<std::string> cells = splitCells(line, format.separator);
     if (cells.size() != header.size())
       throw InputError(path + ":" + std::to_string(line_no) + ": expected " + std::to_string(header.size()) +
                        " cells, found " + std::to_string(cells.size()));
     Sample s;
-    s.t = number(cells, index[0]) * format.timeFactor();
+    const double raw_t = timed ? number(cells, index[0]) : static_cast<double>(log.samples.size()) * format.sample_period / format.timeFactor();
+    // A clock that restarts (ms since midnight) continues across the restart.
+    if (format.time_wraps_at > 0 && raw_t < last_raw_t - 0.5 * format.time_wraps_at) wraps += format.time_wraps_at;
+    if (std::isfinite(raw_t)) last_raw_t = raw_t;
+    s.t = (raw_t + wraps) * format.timeFactor();
     s.u_d = number(cells, index[1]) * format.voltageFactor();
     s.u_q = number(cells, index[2]) * format.voltageFactor();
     s.i_d = number(cells, index[3]) * format.currentFactor();

@@ -1,0 +1,56 @@
+// Identification from averaged telemetry: a log sampled far slower than the current loop (a VESC's
+// 50-1000 Hz stream, a 2 Hz data set). Averaged over an interval much longer than L/R, the dq
+// equations lose their derivative terms and become algebraic (doc/algorithm.md section 12):
+//
+//   u_d = R_s i_d - omega_e L_q i_q + V s_d(i) + k omega_e u_q
+//   u_q = R_s i_q + omega_e L_d i_d + omega_e psi_f + V s_q(i) - k omega_e u_d
+//
+// with V s(i) the inverter's average error voltage along the current (the fundamental of each
+// phase's smoothed sign, its zero-crossing width chosen from the data) and k the drive's
+// unrecorded voltage timing (the applied vector turned by k omega_e against the logged one: an
+// angle prediction or delay of the PWM, k = c T_pwm [s]). The fit is linear in
+// (R_s, L_d, L_q, psi_f, V, k); which of them the data determine follows from their information,
+// as in the fast path: psi_f and L_q from how u varies with omega_e and i_q, R_s apart from V only
+// across current magnitudes, L_d only where i_d varies, L_q apart from k only across load or
+// speed changes.
+#pragma once
+#include <cstddef>
+#include <limits>
+#include <vector>
+
+#include "pmsm_param_id/identification/online_identifier.hpp"
+#include "pmsm_param_id/model/sample.hpp"
+
+namespace pmsm_param_id {
+
+/// A log whose sampling period exceeds this is telemetry (no drive runs its current loop slower
+/// than 500 Hz): the steady-state fit applies, the methods that follow the current loop do not [s].
+constexpr double kTelemetryPeriod = 2e-3;
+
+/// A sample is left out as a transient where its currents or speed step from a neighbour by more
+/// than this many robust standard deviations of the log's own sample-to-sample changes [-].
+constexpr double kTransientSigmas = 6.0;
+
+struct SteadyStateFit {
+  Estimate estimate;                  ///< method "steady_state"; statuses and reasons as the fast path's
+  std::size_t samples = 0;            ///< finite samples in the log
+  std::size_t steady = 0;             ///< samples used (no step to either neighbour)
+  std::size_t transients = 0;         ///< samples left out as transients
+  double sample_period = 0.0;         ///< median spacing of the samples [s]
+  double zero_crossing_current = 0.0; ///< the inverter shape's width the data chose [A]
+  double voltage_timing = std::numeric_limits<double>::quiet_NaN();      ///< k [s]
+  double voltage_timing_std = std::numeric_limits<double>::infinity();   ///< its standard deviation [s]
+  double noise_std_d = 0.0, noise_std_q = 0.0;  ///< voltage-equation noise from the data [V]
+  std::string note;                   ///< one line where the data give too little for a fit
+};
+
+/// The steady-state fit of a whole log (samples in time order; non-finite ones are counted and
+/// left out, a gap or a time going back starts a new stretch for the transient test).
+/// config: its assessment settings (the tolerance, the fit-ratio limit) and the inverter's.
+SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const IdentifierConfig& config);
+
+/// The dq image's magnitude of the fundamental of tanh(i_phase / width) for a current vector of
+/// magnitude `current` (4/pi for a sharp sign, current / width near zero) [-].
+double inverterFundamental(double current, double width);
+
+}  // namespace pmsm_param_id

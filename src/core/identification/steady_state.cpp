@@ -1,0 +1,423 @@
+#include "pmsm_param_id/identification/steady_state.hpp"
+
+#include "pmsm_param_id/identification/slow_estimate.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <string>
+
+namespace pmsm_param_id {
+
+namespace {
+constexpr int kV = 4, kTiming = 5, kColumns = 6;  // after R_s, L_d, L_q, psi_f
+using Vector = Eigen::Matrix<double, kColumns, 1>;
+using Matrix = Eigen::Matrix<double, kColumns, kColumns>;
+
+// The zero-crossing widths tried: the currents' RMS down by quarter octaves to 1/256 of it (below
+// that the fundamental is a sharp sign's to within the noise of any log seen).
+constexpr int kWidthSteps = 32;
+
+struct Row {
+  Vector d = Vector::Zero(), q = Vector::Zero();
+  double u_d = 0.0, u_q = 0.0;
+};
+
+struct LinearFit {
+  bool ok = false;
+  Vector beta = Vector::Zero();
+  Matrix covariance = Matrix::Zero();
+  std::array<bool, kColumns> determined{};
+  double mean_square_d = 0.0, mean_square_q = 0.0;  // [V^2]
+  double noise_d = 0.0, noise_q = 0.0;              // from consecutive residual differences [V^2]
+};
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  const auto at = v.begin() + static_cast<std::ptrdiff_t>(std::min(v.size() - 1, static_cast<std::size_t>(q * v.size())));
+  std::nth_element(v.begin(), at, v.end());
+  return *at;
+}
+
+Row rowOf(const Sample& s, double width) {
+  Row r;
+  const double magnitude = std::hypot(s.i_d, s.i_q);
+  const double shape = magnitude > 0 ? inverterFundamental(magnitude, width) / magnitude : 0.0;
+  r.d << s.i_d, 0.0, -s.omega_e * s.i_q, 0.0, shape * s.i_d, s.omega_e * s.u_q;
+  r.q << s.i_q, s.omega_e * s.i_d, 0.0, s.omega_e, shape * s.i_q, -s.omega_e * s.u_d;
+  r.u_d = s.u_d;
+  r.u_q = s.u_q;
+  return r;
+}
+
+// Weighted least squares over the rows with `free` columns (the others zero); `pairs`: consecutive
+// rows of one stretch, for the noise from residual differences.
+LinearFit solve(const std::vector<Row>& rows, const std::vector<std::size_t>& pairs, const std::array<bool, kColumns>& free,
+                double weight_d, double weight_q) {
+  LinearFit out;
+  Matrix A = Matrix::Zero();
+  Vector b = Vector::Zero();
+  for (const Row& r : rows) {
+    A.noalias() += weight_d * r.d * r.d.transpose() + weight_q * r.q * r.q.transpose();
+    b.noalias() += weight_d * r.d * r.u_d + weight_q * r.q * r.u_q;
+  }
+  // Equilibrated by the diagonal; a column without information (all zero, or held) is left out.
+  Vector scale = Vector::Zero();
+  for (int j = 0; j < kColumns; ++j)
+    if (free[static_cast<std::size_t>(j)] && A(j, j) > 0 && std::isfinite(A(j, j))) scale(j) = 1.0 / std::sqrt(A(j, j));
+  const Matrix scaled = scale.asDiagonal() * A * scale.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Matrix> eig(scaled);
+  if (eig.info() != Eigen::Success) return out;
+  const Vector values = eig.eigenvalues();
+  const double largest = values.maxCoeff();
+  if (!(largest > 0)) return out;
+  // Directions below 1e-12 of the largest are numerically null: a parameter that loads on one is
+  // not determined at all (its standard deviation infinite), the others from the rest.
+  Vector inverse = Vector::Zero();
+  std::array<bool, kColumns> determined{};
+  for (int j = 0; j < kColumns; ++j) determined[static_cast<std::size_t>(j)] = scale(j) > 0;
+  for (int i = 0; i < kColumns; ++i) {
+    if (values(i) > 1e-12 * largest) {
+      inverse(i) = 1.0 / values(i);
+      continue;
+    }
+    for (int j = 0; j < kColumns; ++j)
+      if (scale(j) > 0 && std::abs(eig.eigenvectors()(j, i)) > 1e-3) determined[static_cast<std::size_t>(j)] = false;
+  }
+  const Matrix pinv = eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
+  out.covariance = scale.asDiagonal() * pinv * scale.asDiagonal();
+  out.beta = out.covariance * b;
+  out.determined = determined;
+  std::vector<double> r_d(rows.size()), r_q(rows.size());
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    r_d[k] = rows[k].u_d - rows[k].d.dot(out.beta);
+    r_q[k] = rows[k].u_q - rows[k].q.dot(out.beta);
+    out.mean_square_d += r_d[k] * r_d[k];
+    out.mean_square_q += r_q[k] * r_q[k];
+  }
+  out.mean_square_d /= static_cast<double>(rows.size());
+  out.mean_square_q /= static_cast<double>(rows.size());
+  for (std::size_t k : pairs) {
+    out.noise_d += (r_d[k] - r_d[k - 1]) * (r_d[k] - r_d[k - 1]);
+    out.noise_q += (r_q[k] - r_q[k - 1]) * (r_q[k] - r_q[k - 1]);
+  }
+  // White noise: a difference carries twice the variance.
+  out.noise_d = pairs.empty() ? out.mean_square_d : 0.5 * out.noise_d / static_cast<double>(pairs.size());
+  out.noise_q = pairs.empty() ? out.mean_square_q : 0.5 * out.noise_q / static_cast<double>(pairs.size());
+  out.ok = out.beta.allFinite();
+  return out;
+}
+
+// Two passes: unweighted (volts alike on both axes), then each axis weighted by the larger of its
+// residual and its noise (a misfit widens the standard deviations instead of hiding behind them).
+LinearFit weightedFit(const std::vector<Row>& rows, const std::vector<std::size_t>& pairs, const std::array<bool, kColumns>& free,
+                      double floor2) {
+  LinearFit f = solve(rows, pairs, free, 1.0, 1.0);
+  if (!f.ok) return f;
+  const double var_d = std::max({f.mean_square_d, f.noise_d, floor2}), var_q = std::max({f.mean_square_q, f.noise_q, floor2});
+  if (!(var_d > 0 && var_q > 0)) return f;
+  return solve(rows, pairs, free, 1.0 / var_d, 1.0 / var_q);
+}
+
+// |p(V + dV) - p(V)| per parameter with V held (the inverter model's spread dV moved through the
+// fit, everything else refitted) [SI].
+Vector shiftWithInverterHeld(std::vector<Row> rows, const std::vector<std::size_t>& pairs, std::array<bool, kColumns> free,
+                             double V, double dV, double floor2) {
+  free[kV] = false;
+  const auto fitAt = [&](double v) {
+    std::vector<Row> held = rows;
+    for (Row& r : held) {
+      r.u_d -= v * r.d(kV);
+      r.u_q -= v * r.q(kV);
+    }
+    return weightedFit(held, pairs, free, floor2);
+  };
+  const LinearFit base = fitAt(V), moved = fitAt(V + dV);
+  if (!base.ok || !moved.ok) return Vector::Constant(std::numeric_limits<double>::infinity());
+  return (moved.beta - base.beta).cwiseAbs();
+}
+
+// The standard deviations with the columns in `held` fixed: the inverse of the free part of the
+// information matrix (what the data would give if those were known).
+Vector stdWithHeld(const std::vector<Row>& rows, const std::vector<std::size_t>& pairs, std::array<bool, kColumns> free,
+                   int held, double floor2) {
+  free[static_cast<std::size_t>(held)] = false;
+  const LinearFit f = weightedFit(rows, pairs, free, floor2);
+  Vector sd = Vector::Constant(std::numeric_limits<double>::infinity());
+  if (!f.ok) return sd;
+  for (int j = 0; j < kColumns; ++j)
+    if (free[static_cast<std::size_t>(j)] && f.determined[static_cast<std::size_t>(j)])
+      sd(j) = std::sqrt(std::max(0.0, f.covariance(j, j)));
+  return sd;
+}
+}  // namespace
+
+double inverterFundamental(double current, double width) {
+  if (!(current > 0)) return 0.0;
+  if (!(width > 0)) return 4.0 / M_PI;
+  // (4/pi) int_0^{pi/2} tanh(I cos t / w) cos t dt by Simpson's rule on 64 intervals (the integrand
+  // is smooth; 1e-7 relative at I = w, far below what moves a fit).
+  constexpr int n = 64;
+  const double h = 0.5 * M_PI / n;
+  double sum = 0.0;
+  for (int k = 0; k <= n; ++k) {
+    const double t = k * h, c = std::cos(t);
+    const double f = std::tanh(current * c / width) * c;
+    sum += (k == 0 || k == n ? 1.0 : (k % 2 ? 4.0 : 2.0)) * f;
+  }
+  return 4.0 / M_PI * sum * h / 3.0;
+}
+
+SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const IdentifierConfig& config) {
+  const AssessmentSettings& a = config.assessment;
+  SteadyStateFit out;
+  Estimate& e = out.estimate;
+  e.method = "steady_state";
+  e.parameters.fill(std::numeric_limits<double>::quiet_NaN());
+  e.relative_uncertainty.fill(std::numeric_limits<double>::infinity());
+  e.inverter_voltage = std::numeric_limits<double>::quiet_NaN();
+  std::vector<Sample> finite;
+  finite.reserve(samples.size());
+  for (const Sample& s : samples) {
+    if (std::isfinite(s.t) && std::isfinite(s.u_d) && std::isfinite(s.u_q) && std::isfinite(s.i_d) && std::isfinite(s.i_q) &&
+        std::isfinite(s.omega_e))
+      finite.push_back(s);
+    else
+      ++e.counters.skipped_nonfinite;
+  }
+  out.samples = finite.size();
+  // The sampling period: the median spacing; a step back in time or a gap of more than three
+  // periods starts a new stretch (no neighbour across it).
+  std::vector<double> steps;
+  for (std::size_t k = 1; k < finite.size(); ++k)
+    if (finite[k].t > finite[k - 1].t) steps.push_back(finite[k].t - finite[k - 1].t);
+  out.sample_period = median(steps);
+  e.sample_period = out.sample_period;
+  const std::size_t n = finite.size();
+  std::vector<bool> linked(n, false);  // sample k continues sample k - 1's stretch
+  for (std::size_t k = 1; k < n; ++k) {
+    const double dt = finite[k].t - finite[k - 1].t;
+    linked[k] = dt > 0 && dt <= 3.0 * out.sample_period;
+    if (!linked[k]) ++(dt <= 0 ? e.counters.time_resets : e.counters.gaps);
+  }
+  // Transients: a step of the currents or the speed between neighbours beyond kTransientSigmas
+  // robust standard deviations of the log's own changes (the larger of 1.4826 x their median and
+  // half their upper quartile: quantised telemetry repeats values, and its median change is zero).
+  std::array<std::vector<double>, 3> changes;
+  const auto quantity = [](const Sample& s, int j) { return j == 0 ? s.i_d : j == 1 ? s.i_q : s.omega_e; };
+  for (std::size_t k = 1; k < n; ++k)
+    if (linked[k])
+      for (int j = 0; j < 3; ++j) changes[static_cast<std::size_t>(j)].push_back(std::abs(quantity(finite[k], j) - quantity(finite[k - 1], j)));
+  std::array<double, 3> limit{};
+  for (int j = 0; j < 3; ++j) {
+    const auto& c = changes[static_cast<std::size_t>(j)];
+    const double sigma = std::max(1.4826 * median(c), 0.5 * quantile(c, 0.75));
+    limit[static_cast<std::size_t>(j)] = sigma > 0 ? kTransientSigmas * sigma : 0.0;
+  }
+  std::vector<bool> step(n, false);  // the change from k - 1 to k is a step
+  for (std::size_t k = 1; k < n; ++k)
+    if (linked[k])
+      for (int j = 0; j < 3; ++j)
+        step[k] = step[k] || std::abs(quantity(finite[k], j) - quantity(finite[k - 1], j)) > limit[static_cast<std::size_t>(j)];
+  std::vector<Sample> steady;
+  std::vector<bool> steady_linked;  // the steady sample before it is its neighbour in the log
+  std::size_t last_kept = n;
+  for (std::size_t k = 0; k < n; ++k) {
+    const bool transient = (k > 0 && step[k]) || (k + 1 < n && step[k + 1]);
+    if (transient) {
+      ++out.transients;
+      continue;
+    }
+    steady_linked.push_back(k > 0 && linked[k] && last_kept == k - 1);
+    steady.push_back(finite[k]);
+    last_kept = k;
+  }
+  out.steady = steady.size();
+  e.counters.used = steady.size();
+  if (steady.size() < 2 * kColumns) {
+    out.note = "fewer steady samples (" + std::to_string(steady.size()) + ") than the fit needs (" +
+               std::to_string(2 * kColumns) + ")";
+    Assessment none = assess(e.parameters, e.fit, {}, a);
+    e.status = none.status;
+    e.reason = none.reason;
+    return out;
+  }
+  std::vector<std::size_t> pairs;
+  for (std::size_t k = 1; k < steady.size(); ++k)
+    if (steady_linked[k]) pairs.push_back(k);
+  e.t = steady.back().t;
+  // The operating point: means and spreads of the steady samples.
+  double sd = 0, sq = 0, sw = 0, sdd = 0, sqq = 0, su = 0;
+  for (const Sample& s : steady) {
+    sd += s.i_d;
+    sq += s.i_q;
+    sw += s.omega_e;
+    sdd += s.i_d * s.i_d;
+    sqq += s.i_q * s.i_q;
+    su += s.u_d * s.u_d + s.u_q * s.u_q;
+  }
+  const double m = static_cast<double>(steady.size());
+  e.operating_point.i_d = sd / m;
+  e.operating_point.i_q = sq / m;
+  e.operating_point.omega_e = sw / m;
+  e.operating_point.i_d_spread = std::sqrt(std::max(0.0, sdd / m - sd * sd / (m * m)));
+  e.operating_point.i_q_spread = std::sqrt(std::max(0.0, sqq / m - sq * sq / (m * m)));
+  const double si = std::sqrt((sdd + sqq) / m);  // RMS current [A]
+  // A residual below fit_floor_relative of the RMS voltage is a fit even without noise.
+  const double floor2 = a.fit_floor_relative * a.fit_floor_relative * su / m;
+  const std::array<bool, kColumns> all{true, true, true, true, true, true};
+  const auto rowsFor = [&](double width) {
+    std::vector<Row> rows;
+    rows.reserve(steady.size());
+    for (const Sample& s : steady) rows.push_back(rowOf(s, width));
+    return rows;
+  };
+  // The zero-crossing width, a nonlinear parameter of the shape: the profile of the fit's weighted
+  // residual (chi^2, the axes weighted by a first fit's variances) over the grid; the minimum among
+  // widths giving a physical error (V > 0), and the widths within chi^2 + 1 of it (the width's own
+  // 1-sigma range) are kept for the uncertainty below.
+  const LinearFit first = weightedFit(rowsFor(si / 16.0), pairs, all, floor2);
+  const double var_d = first.ok ? std::max({first.mean_square_d, first.noise_d, floor2}) : 1.0;
+  const double var_q = first.ok ? std::max({first.mean_square_q, first.noise_q, floor2}) : 1.0;
+  struct Profile {
+    double width, chi2;
+    Vector beta;
+  };
+  std::vector<Profile> profile;
+  for (int j = 0; j <= kWidthSteps && si > 0; ++j) {
+    const double w = si * std::exp2(-j / 4.0);
+    const LinearFit g = solve(rowsFor(w), pairs, all, 1.0 / var_d, 1.0 / var_q);
+    if (!g.ok || !(g.beta(kV) > 0)) continue;
+    profile.push_back({w, m * (g.mean_square_d / var_d + g.mean_square_q / var_q), g.beta});
+  }
+  double width = si / 16.0, chi2_min = std::numeric_limits<double>::infinity();
+  const Profile* at_min = nullptr;
+  for (const Profile& p : profile)
+    if (p.chi2 < chi2_min) {
+      chi2_min = p.chi2;
+      width = p.width;
+      at_min = &p;
+    }
+  out.zero_crossing_current = width;
+  const std::vector<Row> rows = rowsFor(width);
+  const LinearFit f = weightedFit(rows, pairs, all, floor2);
+  FitCheck& fit = e.fit;
+  if (!f.ok) {
+    out.note = "the steady-state fit failed (no finite solution)";
+    Assessment none = assess(e.parameters, fit, {}, a);
+    e.status = none.status;
+    e.reason = none.reason;
+    return out;
+  }
+  const Vector known_inverter = stdWithHeld(rows, pairs, all, kV, floor2);
+  const Vector known_timing = stdWithHeld(rows, pairs, all, kTiming, floor2);
+  // The values reported: where the data do not determine a drive constant (V, positive, to 50 %; the timing
+  // to 0.1 rad of turn at the RMS speed), it is held at zero, so that the motor's parameters read
+  // as the apparent ones (R_s with the inverter's voltage in it, L_q with the timing) instead of a
+  // collinear fit's arbitrary split (at one operating point: R_s -18 ohm, V -124 V). Their stated
+  // uncertainty stays the full fit's: they are not identified there, with the reason.
+  double omega_ms = 0.0;
+  for (const Sample& s : steady) omega_ms += s.omega_e * s.omega_e / m;
+  std::array<bool, kColumns> reported_free = all;
+  LinearFit reported = f;
+  const auto stdOfFit = [](const LinearFit& g, int j) {
+    return g.determined[static_cast<std::size_t>(j)] ? std::sqrt(std::max(0.0, g.covariance(j, j))) : std::numeric_limits<double>::infinity();
+  };
+  if (!(reported.beta(kV) > 0 && stdOfFit(reported, kV) < 0.5 * reported.beta(kV))) {
+    reported_free[kV] = false;
+    reported = weightedFit(rows, pairs, reported_free, floor2);
+  }
+  if (reported.ok && !(stdOfFit(reported, kTiming) * std::sqrt(omega_ms) < 0.1)) {
+    reported_free[kTiming] = false;
+    reported = weightedFit(rows, pairs, reported_free, floor2);
+  }
+  if (!reported.ok) reported = f;
+  fit.available = true;
+  for (int p = 0; p < kParameterCount; ++p) {
+    const std::size_t i = static_cast<std::size_t>(p);
+    const double value = reported.beta(p);
+    fit.optimum[p] = value;
+    fit.determined[i] = f.determined[i];
+    const double sd_p = f.determined[i] ? std::sqrt(std::max(0.0, f.covariance(p, p))) : std::numeric_limits<double>::infinity();
+    fit.relative_std[p] = sd_p / std::abs(value);
+    fit.relative_std_known_inverter[p] = known_inverter(p) / std::abs(value);
+    fit.relative_std_known_timing[p] = known_timing(p) / std::abs(value);
+  }
+  out.noise_std_d = std::sqrt(f.noise_d);
+  out.noise_std_q = std::sqrt(f.noise_q);
+  fit.fit_ratio_d = f.mean_square_d / std::max(f.noise_d, 1e-300);
+  fit.fit_ratio_q = f.mean_square_q / std::max(f.noise_q, 1e-300);
+  fit.consistent = f.mean_square_d <= a.max_fit_ratio * f.noise_d + floor2 && f.mean_square_q <= a.max_fit_ratio * f.noise_q + floor2;
+  if (!fit.consistent)
+    fit.likely_cause = "the steady-state equations do not hold across these samples: a parameter that changed within the "
+                       "log (temperature over minutes, a fault), a saturating machine across its loads, or transients "
+                       "the step test did not catch";
+  // The inverter model's own error: the shape of the average error is a model (the fundamental of a
+  // smoothed sign at one width for all operating points; a real drive's error also changes with the
+  // ripple's share of the current), so V stands for the error to no better than kInverterModelFloor
+  // of itself (as the slow window states, slow_estimate.hpp): what that moves each parameter by is
+  // added to its stated uncertainty. (Measured before this term: R_s 1.1 % off at a stated 0.36 %
+  // on telemetry_duty_cycle.yaml at 50 Hz.)
+  // The width is known only to its profile's range: what the widths within chi^2 + 1 of the minimum
+  // move each parameter by counts as well (the larger of the two terms). (On telemetry_duty_cycle
+  // at 50 Hz the profile is flat below a quarter of an ampere while R_s moves by 0.4 %.)
+  if (f.determined[kV] && f.beta(kV) > 0) {
+    const Vector shift = shiftWithInverterHeld(rows, pairs, all, f.beta(kV), kInverterModelFloor * f.beta(kV), floor2);
+    Vector width_shift = Vector::Zero();
+    for (const Profile& p : profile)
+      if (at_min && p.chi2 <= chi2_min + 1.0) width_shift = width_shift.cwiseMax((p.beta - at_min->beta).cwiseAbs());
+    for (int p = 0; p < kParameterCount; ++p) fit.model_floor[p] = std::max(shift(p), width_shift(p)) / std::abs(fit.optimum[p]);
+  }
+  fit.inverter_modelled = true;
+  fit.inverter_voltage = f.beta(kV);
+  fit.inverter_relative_std =
+      f.determined[kV] ? std::sqrt(std::max(0.0, f.covariance(kV, kV))) / std::abs(f.beta(kV)) : std::numeric_limits<double>::infinity();
+  fit.voltage_angle_modelled = true;  // k: the reasons name the drive's timing where it hides L_q
+  out.voltage_timing = f.beta(kTiming);
+  out.voltage_timing_std =
+      f.determined[kTiming] ? std::sqrt(std::max(0.0, f.covariance(kTiming, kTiming))) : std::numeric_limits<double>::infinity();
+  fit.voltage_angle = std::numeric_limits<double>::quiet_NaN();  // in omega_e T_s: the PWM period is not in the log
+  fit.voltage_angle_std = std::numeric_limits<double>::quiet_NaN();
+  e.parameters = fit.optimum;
+  const Assessment as = assess(e.parameters, fit, {}, a);
+  e.status = as.status;
+  e.reason = as.reason;
+  e.relative_uncertainty = as.relative_uncertainty;
+  // A value outside every motor's range that the data leave free (a collinear fit's split at one
+  // operating point: R_s i_q and omega_e psi_f are one constant voltage there) is not determined
+  // rather than implausible: the data say nothing against the motor.
+  for (int p = 0; p < kParameterCount; ++p) {
+    const double statistical = a.confidence_sigmas * std::max(fit.relative_std[p], stdOfFit(reported, p) / std::abs(e.parameters[p]));
+    if (e.status[p] != ParameterStatus::Implausible || !std::isfinite(e.parameters[p]) || statistical <= 1.0) continue;
+    e.status[p] = ParameterStatus::NotExcited;
+    e.reason[p] = "the data leave it free (+-" + std::to_string(static_cast<long>(std::lround(100 * statistical))) +
+                  " %): one operating point, or too few apart; load and speed levels further apart determine it";
+  }
+  for (int p = 0; p < kParameterCount; ++p) e.identifiable[static_cast<std::size_t>(p)] = e.status[p] == ParameterStatus::Identified;
+  const InverterAssessment inv = assessInverter(fit, a, config.inverter.max_relative_uncertainty);
+  e.inverter_voltage = fit.inverter_voltage;
+  e.inverter_status = inv.status;
+  e.inverter_reason = inv.reason;
+  e.inverter_relative_uncertainty = inv.relative_uncertainty;
+  if (!reported_free[kV]) {  // held at zero for the values reported
+    e.inverter_voltage = std::numeric_limits<double>::quiet_NaN();
+    e.inverter_status = ParameterStatus::NotExcited;
+    e.inverter_reason = "the data do not determine it (to 50 %): at one current magnitude it acts as a resistance, "
+                        "and R_s reads with it; current magnitudes further apart separate them";
+  }
+  if (!reported_free[kTiming]) {
+    out.voltage_timing = std::numeric_limits<double>::quiet_NaN();
+    out.voltage_timing_std = std::numeric_limits<double>::infinity();
+  }
+  return out;
+}
+
+}  // namespace pmsm_param_id
