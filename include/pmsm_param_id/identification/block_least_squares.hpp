@@ -71,6 +71,8 @@ struct BlockFit {
   double current_noise_variance_d = 0.0;  ///< the currents' own noise, from the block ends alone [A^2]
   double current_noise_variance_q = 0.0;
   Eigen::VectorXd standard_deviation;  ///< of beta from the window's information (inf: undetermined)
+  /// The correlations of the determined entries (1 on the diagonal, 0 where undetermined) [-].
+  Eigen::MatrixXd correlation;
   double fitness() const { return mean_square_d + mean_square_q; }
 };
 

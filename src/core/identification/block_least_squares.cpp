@@ -294,6 +294,7 @@ BlockFit fitModel(const WindowSums& stats, const LinearBlockModel& model, const 
   out.beta = start;
   out.determined.assign(static_cast<std::size_t>(n), false);
   out.standard_deviation = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::infinity());
+  out.correlation = Eigen::MatrixXd::Identity(n, n);
   if (!stats.hasBlocks() || start.size() != n || !(start(model.d_inductance) > 0) || !(start(model.q_inductance) > 0))
     return out;
   std::vector<bool> fixed = fixed_in;
@@ -453,6 +454,9 @@ BlockFit fitModel(const WindowSums& stats, const LinearBlockModel& model, const 
       out.standard_deviation(free[a]) = std::sqrt(variance_inflation * std::max(0.0, cov(a, a))) * s(a);
       out.determined[free[a]] = true;
     }
+    for (int a = 0; a < m; ++a)
+      for (int b = 0; b < m; ++b)
+        if (a != b && cov(a, a) > 0 && cov(b, b) > 0) out.correlation(free[a], free[b]) = cov(a, b) / std::sqrt(cov(a, a) * cov(b, b));
     break;
   }
   return out;
