@@ -129,7 +129,7 @@ LinearFit weightedFit(const std::vector<Row>& rows, const std::vector<std::size_
 
 // |p(V + dV) - p(V)| per parameter with V held (the inverter model's spread dV moved through the
 // fit, everything else refitted) [SI].
-Vector shiftWithInverterHeld(std::vector<Row> rows, const std::vector<std::size_t>& pairs, std::array<bool, kColumns> free,
+Vector shiftWithInverterHeld(const std::vector<Row>& rows, const std::vector<std::size_t>& pairs, std::array<bool, kColumns> free,
                              double V, double dV, double floor2) {
   free[kV] = false;
   const auto fitAt = [&](double v) {

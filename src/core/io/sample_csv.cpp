@@ -12,37 +12,44 @@
 #include <limits>
 #include <map>
 #include <sstream>
-#include <utility>
 #include <stdexcept>
+#include <utility>
 
 #include "pmsm_param_id/io/config_error.hpp"
 
 namespace pmsm_param_id {
 
-void writeSampleCsv(const std::string& path, const std::vector<SimulatedSample>& samples) {
+namespace {
+/// Writes through `body` to a temporary name in the same folder, then renames: the file appears
+/// complete or not at all.
+void writeAtomically(const std::string& path, const std::function<void(FILE*)>& body) {
   const std::string tmp = path + ".tmp." + std::to_string(::getpid());
   FILE* f = std::fopen(tmp.c_str(), "w");
   if (!f) throw std::runtime_error(path + ": cannot write (" + std::string(std::strerror(errno)) + ")");
-  std::fputs("t,u_d,u_q,i_d,i_q,omega_e,theta_e,v_dc,R_s,L_d,L_q,psi_f\n", f);
-  for (const SimulatedSample& s : samples) {
-    const Sample& x = s.sample;
-    std::fprintf(f, "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", x.t, x.u_d, x.u_q,
-                 x.i_d, x.i_q, x.omega_e, x.theta_e, x.v_dc, s.truth[kRs], s.truth[kLd], s.truth[kLq], s.truth[kPsiF]);
-  }
+  body(f);
   const bool ok = std::ferror(f) == 0;
   if (std::fclose(f) != 0 || !ok || std::rename(tmp.c_str(), path.c_str()) != 0) {
     std::remove(tmp.c_str());
     throw std::runtime_error(path + ": write failed");
   }
 }
+}  // namespace
+
+void writeSampleCsv(const std::string& path, const std::vector<SimulatedSample>& samples) {
+  writeAtomically(path, [&](FILE* f) {
+    std::fputs("t,u_d,u_q,i_d,i_q,omega_e,theta_e,v_dc,R_s,L_d,L_q,psi_f\n", f);
+    for (const SimulatedSample& s : samples) {
+      const Sample& x = s.sample;
+      std::fprintf(f, "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", x.t, x.u_d, x.u_q,
+                   x.i_d, x.i_q, x.omega_e, x.theta_e, x.v_dc, s.truth[kRs], s.truth[kLd], s.truth[kLq], s.truth[kPsiF]);
+    }
+  });
+}
 
 void writeSampleCsv(const std::string& path, const std::vector<SimulatedSample>& samples, const LogFormat& format,
                     double clock_start) {
   format.validate("log format");
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  FILE* f = std::fopen(tmp.c_str(), "w");
-  if (!f) throw std::runtime_error(path + ": cannot write (" + std::string(std::strerror(errno)) + ")");
-  // (quantity, file value from a sample)
+  // (column name, file value from a sample)
   std::vector<std::pair<std::string, std::function<double(const SimulatedSample&)>>> columns;
   const auto add = [&](const char* quantity, std::function<double(const SimulatedSample&)> value) {
     const auto it = format.columns.find(quantity);
@@ -58,22 +65,19 @@ void writeSampleCsv(const std::string& path, const std::vector<SimulatedSample>&
   add("i_d", [&](const SimulatedSample& s) { return s.sample.i_d / format.currentFactor(); });
   add("i_q", [&](const SimulatedSample& s) { return s.sample.i_q / format.currentFactor(); });
   add("omega_e", [&](const SimulatedSample& s) { return s.sample.omega_e / format.speedFactor(); });
-  if (std::isfinite(samples.empty() ? NAN : samples.front().sample.theta_e))
+  if (!samples.empty() && std::isfinite(samples.front().sample.theta_e))
     add("theta_e", [&](const SimulatedSample& s) { return s.sample.theta_e / format.angleFactor(); });
-  if (std::isfinite(samples.empty() ? NAN : samples.front().sample.v_dc))
+  if (!samples.empty() && std::isfinite(samples.front().sample.v_dc))
     add("v_dc", [&](const SimulatedSample& s) { return s.sample.v_dc / format.busVoltageFactor(); });
   for (int p = 0; p < kParameterCount; ++p)
     columns.emplace_back(parameterNames()[p], [p](const SimulatedSample& s) { return s.truth[p]; });
-  for (std::size_t c = 0; c < columns.size(); ++c)
-    std::fprintf(f, "%s%c", columns[c].first.c_str(), c + 1 < columns.size() ? format.separator : '\n');
-  for (const SimulatedSample& s : samples)
+  writeAtomically(path, [&](FILE* f) {
     for (std::size_t c = 0; c < columns.size(); ++c)
-      std::fprintf(f, "%.17g%c", columns[c].second(s), c + 1 < columns.size() ? format.separator : '\n');
-  const bool ok = std::ferror(f) == 0;
-  if (std::fclose(f) != 0 || !ok || std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": write failed");
-  }
+      std::fprintf(f, "%s%c", columns[c].first.c_str(), c + 1 < columns.size() ? format.separator : '\n');
+    for (const SimulatedSample& s : samples)
+      for (std::size_t c = 0; c < columns.size(); ++c)
+        std::fprintf(f, "%.17g%c", columns[c].second(s), c + 1 < columns.size() ? format.separator : '\n');
+  });
 }
 
 namespace {
