@@ -394,6 +394,43 @@ class BenchAndIdentifyInputs(unittest.TestCase):
         self.assertIn("rpm", jb["fit"]["likely_cause"])
 
 
+class Telemetry(unittest.TestCase):
+    def test_a_vesc_log_across_midnight_is_identified_and_an_older_one_names_its_missing_columns(self):
+        tmp = tempfile.mkdtemp(prefix="pmsm_vesc_")
+        log, out = os.path.join(tmp, "vesc.csv"), os.path.join(tmp, "vesc.json")
+        scenario = os.path.join(ROOT, "config", "scenarios", "telemetry_duty_cycle.yaml")
+        r = tool("pmsm_tool", "simulate", "--scenario", scenario, "--csv", log, "--duration", "12",
+                 "--telemetry-period", "0.02", "--format", "vesc", "--clock-start", "86395")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(log) as f:
+            header = f.readline().strip().split(";")
+            clock = [float(line.split(";")[0]) for line in f]
+        self.assertEqual(header[:7], ["ms_today", "d_axis_voltage", "q_axis_voltage", "d_axis_current",
+                                      "q_axis_current", "erpm", "input_voltage"])
+        self.assertLess(min(clock), 1000.0)  # the clock passed midnight
+        r = tool("pmsm_tool", "identify", "--csv", log, "--format", "vesc", "--method", "fbdapso", "--json", out)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("steady-state fit", r.stderr)
+        self.assertIn("does not apply to telemetry", r.stderr)
+        with open(out) as f:
+            j = json.load(f)
+        self.assertEqual(j["method"], "steady_state")
+        for p in ("L_q", "psi_f"):
+            self.assertEqual(j["status"][p], "identified", j["reason"][p])
+        self.assertLess(abs(j["psi_f"] / 0.55 - 1.0), 0.01)
+        self.assertLess(abs(j["L_q"] / 0.051 - 1.0), 0.01)
+        self.assertEqual(j["status"]["L_d"], "not_excited")  # i_d never varies
+        # Older firmware logs no d/q voltages: one line naming the column, exit 2.
+        old = os.path.join(tmp, "old.csv")
+        with open(log) as f, open(old, "w") as g:
+            for line in f:
+                cells = line.rstrip("\n").split(";")
+                g.write(";".join([cells[0]] + cells[3:]) + "\n")
+        r = tool("pmsm_tool", "identify", "--csv", old, "--format", "vesc")
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("missing column 'd_axis_voltage'", r.stderr)
+
+
 class Thermal(unittest.TestCase):
     def test_a_config_with_only_a_thermal_block_gives_both_temperatures(self):
         tmp = tempfile.mkdtemp(prefix="pmsm_thermal_")
