@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 namespace pmsm_param_id {
@@ -391,15 +392,22 @@ SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const Identifi
   e.status = as.status;
   e.reason = as.reason;
   e.relative_uncertainty = as.relative_uncertainty;
-  // A value outside every motor's range that the data leave free (a collinear fit's split at one
-  // operating point: R_s i_q and omega_e psi_f are one constant voltage there) is not determined
-  // rather than implausible: the data say nothing against the motor.
+  // A value outside every motor's range that the data do not determine to the tolerance (a
+  // collinear split at one operating point: R_s i_q and omega_e psi_f are one constant voltage
+  // there, and the fluctuations around it, whose dynamics the averaged equations do not hold, pick
+  // the split) is not determined rather than implausible: the data say nothing against the motor.
   for (int p = 0; p < kParameterCount; ++p) {
-    const double statistical = a.confidence_sigmas * std::max(fit.relative_std[p], stdOfFit(reported, p) / std::abs(e.parameters[p]));
-    if (e.status[p] != ParameterStatus::Implausible || !std::isfinite(e.parameters[p]) || statistical <= 1.0) continue;
+    const double statistical = a.confidence_sigmas * fit.relative_std[p];
+    if (e.status[p] != ParameterStatus::Implausible || !std::isfinite(e.parameters[p]) ||
+        statistical <= a.max_relative_uncertainty)
+      continue;
+    char buf[200];
+    std::snprintf(buf, sizeof buf,
+                  "the data determine it only to +-%.3g %% (need %.3g %%), and its value lies outside every motor's range: "
+                  "one operating point, or too few apart; load and speed levels further apart determine it",
+                  100 * statistical, 100 * a.max_relative_uncertainty);
     e.status[p] = ParameterStatus::NotExcited;
-    e.reason[p] = "the data leave it free (+-" + std::to_string(static_cast<long>(std::lround(100 * statistical))) +
-                  " %): one operating point, or too few apart; load and speed levels further apart determine it";
+    e.reason[p] = buf;
   }
   for (int p = 0; p < kParameterCount; ++p) e.identifiable[static_cast<std::size_t>(p)] = e.status[p] == ParameterStatus::Identified;
   const InverterAssessment inv = assessInverter(fit, a, config.inverter.max_relative_uncertainty);
