@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include "pmsm_param_id/identification/block_statistics.hpp"
 #include "pmsm_param_id/identification/identifiers.hpp"
@@ -1286,18 +1287,32 @@ TEST(Thermal, TemperaturesFollowTheSimulatorsThermalModel) {
   }
 }
 
+namespace {
+// A monitoring scenario of the switching-level drive cut to `duration`, RLS with cold_start.yaml
+// ready to run over it, and the stride of an estimate every 10 ms.
+struct ColdStartRun {
+  std::vector<SimulatedSample> data;
+  std::unique_ptr<OnlineIdentifier> id;
+  std::size_t stride = 1;
+};
+ColdStartRun coldStartRun(const char* scenario, double duration) {
+  Scenario s = test_helpers::scenario(scenario);
+  s.duration = duration;
+  IdentifierConfig c = loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/cold_start.yaml"));
+  c.method = "rls";
+  return {test_helpers::run(s), makeIdentifier(c), static_cast<std::size_t>(std::lround(0.01 / s.drive.sample_period))};
+}
+}  // namespace
+
 // The slow window on the switching-level industrial drive with nothing declared but a cold start:
 // the first 30 s of the duty cycle (a load step at 20 s heats the winding by about 15 K).
 TEST(SlowWindow, WindingTemperatureBehindASwitchingInverterLiesWithinItsStatedUncertainty) {
-  Scenario s = test_helpers::scenario("real_drive_duty_cycle.yaml");
-  s.duration = 30.0;
-  const auto data = test_helpers::run(s);
-  IdentifierConfig c = loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/cold_start.yaml"));
-  c.method = "rls";
-  auto id = makeIdentifier(c);
+  const ColdStartRun run = coldStartRun("real_drive_duty_cycle.yaml", 30.0);
+  const auto& data = run.data;
+  const auto& id = run.id;
+  const std::size_t stride = run.stride;
   int estimates = 0, reported = 0, outside = 0, slow_rs_identified = 0;
   double worst = 0.0;
-  const std::size_t stride = static_cast<std::size_t>(std::lround(0.01 / s.drive.sample_period));
   for (std::size_t k = 0; k < data.size(); ++k) {
     id->process(data[k].sample);
     if (k % stride != stride - 1 || data[k].sample.t < 5.0) continue;
@@ -1319,14 +1334,11 @@ TEST(SlowWindow, WindingTemperatureBehindASwitchingInverterLiesWithinItsStatedUn
 
 // A 4 % psi_f fall within 0.2 s: the slow psi_f trails it and must not be identified meanwhile.
 TEST(SlowWindow, APsiFFallIsNotReportedIdentifiedByTheLaggingSlowWindow) {
-  Scenario s = test_helpers::scenario("real_drive_demagnetisation.yaml");
-  s.duration = 18.5;
-  const auto data = test_helpers::run(s);
-  IdentifierConfig c = loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/cold_start.yaml"));
-  c.method = "rls";
-  auto id = makeIdentifier(c);
+  const ColdStartRun run = coldStartRun("real_drive_demagnetisation.yaml", 18.5);
+  const auto& data = run.data;
+  const auto& id = run.id;
+  const std::size_t stride = run.stride;
   int identified_after = 0, wrong = 0, outside_late = 0;
-  const std::size_t stride = static_cast<std::size_t>(std::lround(0.01 / s.drive.sample_period));
   for (std::size_t k = 0; k < data.size(); ++k) {
     id->process(data[k].sample);
     if (k % stride != stride - 1 || data[k].sample.t < 13.0) continue;
