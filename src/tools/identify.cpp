@@ -1,5 +1,4 @@
 // pmsm_tool identify: R_s, L_d, L_q, psi_f (and the map of the motor) from a drive log.
-#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -75,19 +74,11 @@ int runIdentify(const std::string& csv, const std::string& method, const std::st
   // unless the user says which.
   bool telemetry = data_kind == "telemetry" || steady_method;
   if (data_kind == "auto" && !steady_method) {
-    std::vector<double> steps;
-    for (std::size_t k = 1; k < log.samples.size(); ++k) {
-      const double dt = log.samples[k].t - log.samples[k - 1].t;
-      if (dt > 0 && std::isfinite(dt)) steps.push_back(dt);
-    }
-    if (!steps.empty()) {
-      std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2), steps.end());
-      const double T = steps[steps.size() / 2];
-      telemetry = T > kTelemetryPeriod;
-      if (telemetry)
-        std::fprintf(stderr, "%s: sampled every %.3g s, slower than any current loop: telemetry, the steady-state fit "
-                     "(--data current_loop if the time column's unit is wrong instead: --time-unit)\n", csv.c_str(), T);
-    }
+    const double T = medianSpacing(log.samples);
+    telemetry = T > kTelemetryPeriod;
+    if (telemetry)
+      std::fprintf(stderr, "%s: sampled every %.3g s, slower than any current loop: telemetry, the steady-state fit "
+                   "(--data current_loop if the time column's unit is wrong instead: --time-unit)\n", csv.c_str(), T);
   }
   if (telemetry) {
     if (!thermal_state.empty() || !map_csv.empty())

@@ -49,6 +49,9 @@ struct SteadyStateFit {
 /// config: its assessment settings (the tolerance, the fit-ratio limit) and the inverter's.
 SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const IdentifierConfig& config);
 
+/// The median of the positive, finite spacings of the samples' stamps; 0 where there are none [s].
+double medianSpacing(const std::vector<Sample>& samples);
+
 /// The dq image's magnitude of the fundamental of tanh(i_phase / width) for a current vector of
 /// magnitude `current` (4/pi for a sharp sign, current / width near zero) [-].
 double inverterFundamental(double current, double width);

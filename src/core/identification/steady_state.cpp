@@ -117,6 +117,12 @@ LinearFit solve(const std::vector<Row>& rows, const std::vector<std::size_t>& pa
   return out;
 }
 
+// A fitted entry's standard deviation (infinite where the data do not determine it).
+double stdOf(const LinearFit& f, int j) {
+  return f.determined[static_cast<std::size_t>(j)] ? std::sqrt(std::max(0.0, f.covariance(j, j)))
+                                                   : std::numeric_limits<double>::infinity();
+}
+
 // Two passes: unweighted (volts alike on both axes), then each axis weighted by the larger of its
 // residual and its noise (a misfit widens the standard deviations instead of hiding behind them).
 LinearFit weightedFit(const std::vector<Row>& rows, const std::vector<std::size_t>& pairs, const std::array<bool, kColumns>& free,
@@ -155,11 +161,19 @@ Vector stdWithHeld(const std::vector<Row>& rows, const std::vector<std::size_t>&
   Vector sd = Vector::Constant(std::numeric_limits<double>::infinity());
   if (!f.ok) return sd;
   for (int j = 0; j < kColumns; ++j)
-    if (free[static_cast<std::size_t>(j)] && f.determined[static_cast<std::size_t>(j)])
-      sd(j) = std::sqrt(std::max(0.0, f.covariance(j, j)));
+    if (free[static_cast<std::size_t>(j)]) sd(j) = stdOf(f, j);
   return sd;
 }
 }  // namespace
+
+double medianSpacing(const std::vector<Sample>& samples) {
+  std::vector<double> steps;
+  for (std::size_t k = 1; k < samples.size(); ++k) {
+    const double dt = samples[k].t - samples[k - 1].t;
+    if (dt > 0 && std::isfinite(dt)) steps.push_back(dt);
+  }
+  return median(steps);
+}
 
 double inverterFundamental(double current, double width) {
   if (!(current > 0)) return 0.0;
@@ -197,10 +211,7 @@ SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const Identifi
   out.samples = finite.size();
   // The sampling period: the median spacing; a step back in time or a gap of more than three
   // periods starts a new stretch (no neighbour across it).
-  std::vector<double> steps;
-  for (std::size_t k = 1; k < finite.size(); ++k)
-    if (finite[k].t > finite[k - 1].t) steps.push_back(finite[k].t - finite[k - 1].t);
-  out.sample_period = median(steps);
+  out.sample_period = medianSpacing(finite);
   e.sample_period = out.sample_period;
   const std::size_t n = finite.size();
   std::vector<bool> linked(n, false);  // sample k continues sample k - 1's stretch
@@ -212,22 +223,22 @@ SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const Identifi
   // Transients: a step of the currents or the speed between neighbours beyond kTransientSigmas
   // robust standard deviations of the log's own changes (the larger of 1.4826 x their median and
   // half their upper quartile: quantised telemetry repeats values, and its median change is zero).
+  std::vector<std::array<double, 3>> change(n);  // |x_k - x_(k-1)| of i_d, i_q, omega_e where linked
   std::array<std::vector<double>, 3> changes;
-  const auto quantity = [](const Sample& s, int j) { return j == 0 ? s.i_d : j == 1 ? s.i_q : s.omega_e; };
-  for (std::size_t k = 1; k < n; ++k)
-    if (linked[k])
-      for (int j = 0; j < 3; ++j) changes[static_cast<std::size_t>(j)].push_back(std::abs(quantity(finite[k], j) - quantity(finite[k - 1], j)));
+  for (std::size_t k = 1; k < n; ++k) {
+    if (!linked[k]) continue;
+    change[k] = {std::abs(finite[k].i_d - finite[k - 1].i_d), std::abs(finite[k].i_q - finite[k - 1].i_q),
+                 std::abs(finite[k].omega_e - finite[k - 1].omega_e)};
+    for (std::size_t j = 0; j < 3; ++j) changes[j].push_back(change[k][j]);
+  }
   std::array<double, 3> limit{};
-  for (int j = 0; j < 3; ++j) {
-    const auto& c = changes[static_cast<std::size_t>(j)];
-    const double sigma = std::max(1.4826 * median(c), 0.5 * quantile(c, 0.75));
-    limit[static_cast<std::size_t>(j)] = sigma > 0 ? kTransientSigmas * sigma : 0.0;
+  for (std::size_t j = 0; j < 3; ++j) {
+    const double sigma = std::max(1.4826 * median(changes[j]), 0.5 * quantile(changes[j], 0.75));
+    limit[j] = sigma > 0 ? kTransientSigmas * sigma : 0.0;
   }
   std::vector<bool> step(n, false);  // the change from k - 1 to k is a step
   for (std::size_t k = 1; k < n; ++k)
-    if (linked[k])
-      for (int j = 0; j < 3; ++j)
-        step[k] = step[k] || std::abs(quantity(finite[k], j) - quantity(finite[k - 1], j)) > limit[static_cast<std::size_t>(j)];
+    for (std::size_t j = 0; j < 3 && linked[k]; ++j) step[k] = step[k] || change[k][j] > limit[j];
   std::vector<Sample> steady;
   std::vector<bool> steady_linked;  // the steady sample before it is its neighbour in the log
   std::size_t last_kept = n;
@@ -329,14 +340,11 @@ SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const Identifi
   for (const Sample& s : steady) omega_ms += s.omega_e * s.omega_e / m;
   std::array<bool, kColumns> reported_free = all;
   LinearFit reported = f;
-  const auto stdOfFit = [](const LinearFit& g, int j) {
-    return g.determined[static_cast<std::size_t>(j)] ? std::sqrt(std::max(0.0, g.covariance(j, j))) : std::numeric_limits<double>::infinity();
-  };
-  if (!(reported.beta(kV) > 0 && stdOfFit(reported, kV) < 0.5 * reported.beta(kV))) {
+  if (!(reported.beta(kV) > 0 && stdOf(reported, kV) < 0.5 * reported.beta(kV))) {
     reported_free[kV] = false;
     reported = weightedFit(rows, pairs, reported_free, floor2);
   }
-  if (reported.ok && !(stdOfFit(reported, kTiming) * std::sqrt(omega_ms) < 0.1)) {
+  if (reported.ok && !(stdOf(reported, kTiming) * std::sqrt(omega_ms) < 0.1)) {
     reported_free[kTiming] = false;
     reported = weightedFit(rows, pairs, reported_free, floor2);
   }
@@ -347,8 +355,7 @@ SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const Identifi
     const double value = reported.beta(p);
     fit.optimum[p] = value;
     fit.determined[i] = f.determined[i];
-    const double sd_p = f.determined[i] ? std::sqrt(std::max(0.0, f.covariance(p, p))) : std::numeric_limits<double>::infinity();
-    fit.relative_std[p] = sd_p / std::abs(value);
+    fit.relative_std[p] = stdOf(f, p) / std::abs(value);
     fit.relative_std_known_inverter[p] = known_inverter(p) / std::abs(value);
     fit.relative_std_known_timing[p] = known_timing(p) / std::abs(value);
   }
@@ -379,12 +386,10 @@ SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const Identifi
   }
   fit.inverter_modelled = true;
   fit.inverter_voltage = f.beta(kV);
-  fit.inverter_relative_std =
-      f.determined[kV] ? std::sqrt(std::max(0.0, f.covariance(kV, kV))) / std::abs(f.beta(kV)) : std::numeric_limits<double>::infinity();
+  fit.inverter_relative_std = stdOf(f, kV) / std::abs(f.beta(kV));
   fit.voltage_angle_modelled = true;  // k: the reasons name the drive's timing where it hides L_q
   out.voltage_timing = f.beta(kTiming);
-  out.voltage_timing_std =
-      f.determined[kTiming] ? std::sqrt(std::max(0.0, f.covariance(kTiming, kTiming))) : std::numeric_limits<double>::infinity();
+  out.voltage_timing_std = stdOf(f, kTiming);
   fit.voltage_angle = std::numeric_limits<double>::quiet_NaN();  // in omega_e T_s: the PWM period is not in the log
   fit.voltage_angle_std = std::numeric_limits<double>::quiet_NaN();
   e.parameters = fit.optimum;
