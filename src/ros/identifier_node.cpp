@@ -36,6 +36,15 @@ IdentifierNode::IdentifierNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
   frame_id_ = typedParam<std::string>(pnh_, "frame_id", "");
   bad_input_hold_ = typedParam<double>(pnh_, "bad_input_hold", 10.0);
   if (!(bad_input_hold_ >= 0)) throw ConfigError("parameter ~bad_input_hold: must be >= 0 [s]");
+  const std::string data = typedParam<std::string>(pnh_, "data", "auto");
+  if (data == "current_loop") data_kind_ = DataKind::CurrentLoop;
+  else if (data == "telemetry") data_kind_ = DataKind::Telemetry;
+  else if (data != "auto")
+    throw ConfigError("parameter ~data: must be 'auto', 'current_loop' or 'telemetry', got '" + data + "'");
+  telemetry_publish_period_ = typedParam<double>(pnh_, "telemetry_publish_period", 1.0);
+  if (!(telemetry_publish_period_ > 0)) throw ConfigError("parameter ~telemetry_publish_period: must be > 0 [s]");
+  const int telemetry_max_samples =
+      typedParam<int>(pnh_, "telemetry_max_samples", static_cast<int>(TelemetryIdentifier::kDefaultMaxSamples));
   const std::string input = typedParam<std::string>(pnh_, "input", "batch");
   if (input != "batch" && input != "single")
     throw ConfigError("parameter ~input: must be 'batch' or 'single', got '" + input + "'");
@@ -45,6 +54,8 @@ IdentifierNode::IdentifierNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
   map_csv_ = typedParam<std::string>(pnh_, "map_csv", "");
 
   identifier_ = makeIdentifier(config);
+  if (telemetry_max_samples < 12) throw ConfigError("parameter ~telemetry_max_samples: must be >= 12 (the fit's minimum)");
+  telemetry_ = std::make_unique<TelemetryIdentifier>(config, static_cast<std::size_t>(telemetry_max_samples));
   saved_references_ = loadThermalStateFor(thermal_state_, config.thermal.reference_temperature);
   if (saved_references_.any()) {
     identifier_->restoreReferences(saved_references_);
@@ -67,8 +78,9 @@ IdentifierNode::IdentifierNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
   updater_.add("identifier", this, &IdentifierNode::diagnose);
   last_receive_ = rate_window_start_ = ros::WallTime::now();
   timer_ = nh_.createWallTimer(ros::WallDuration(0.1), &IdentifierNode::onTimer, this);
-  ROS_INFO("identifier '%s' listening on %s (%s), publishing %s every %g s of stamp time", config.method.c_str(),
-           sub_.getTopic().c_str(), input.c_str(), pub_estimate_.getTopic().c_str(), publish_period_);
+  ROS_INFO("identifier '%s' listening on %s (%s, data: %s), publishing %s every %g s of stamp time (telemetry: every %g s)",
+           config.method.c_str(), sub_.getTopic().c_str(), input.c_str(), data.c_str(), pub_estimate_.getTopic().c_str(),
+           publish_period_, std::max(publish_period_, telemetry_publish_period_));
 }
 
 void IdentifierNode::onBatch(const DriveSampleBatch::ConstPtr& msg) {
@@ -108,6 +120,61 @@ void IdentifierNode::consume(const Sample& s) {
   ++received_;
   ++rate_window_count_;
   last_receive_ = ros::WallTime::now();
+  switch (data_kind_) {
+    case DataKind::Undecided:
+      pending_.push_back(s);
+      if (pending_.size() >= kDecisionSamples) decideDataKind();
+      return;
+    case DataKind::CurrentLoop:
+      consumeCurrentLoop(s);
+      return;
+    case DataKind::Telemetry:
+      consumeTelemetry(s);
+      return;
+  }
+}
+
+void IdentifierNode::decideDataKind() {
+  // As identify --data auto: a median spacing slower than any current loop is telemetry.
+  const double T = medianSpacing(pending_);
+  data_kind_ = T > kTelemetryPeriod ? DataKind::Telemetry : DataKind::CurrentLoop;
+  if (data_kind_ == DataKind::Telemetry)
+    ROS_INFO("samples every %.3g s, slower than any current loop: telemetry, the steady-state fit "
+             "(set ~data: current_loop if the stamps are wrong instead)", T);
+  std::vector<Sample> held;
+  held.swap(pending_);
+  for (const Sample& h : held) {
+    if (data_kind_ == DataKind::Telemetry) consumeTelemetry(h);
+    else consumeCurrentLoop(h);
+  }
+}
+
+void IdentifierNode::consumeTelemetry(const Sample& s) {
+  switch (telemetry_->process(s)) {
+    case SampleStatus::TimeReset:
+      ROS_WARN("stamps went backwards (a looping bag?): the steady-state fit starts again from this sample");
+      next_publish_ = 0.0;
+      break;
+    case SampleStatus::SkippedNonFinite:
+      ROS_WARN_THROTTLE(1.0, "a sample with a NaN or inf value: left out of the fit");
+      return;
+    default:
+      break;
+  }
+  last_t_ = s.t;
+  unpublished_ = true;
+  const double period = std::max(publish_period_, telemetry_publish_period_);
+  if (s.t + 1e-12 >= next_publish_) {
+    publish();
+    next_publish_ = (std::floor(s.t / period + 1e-9) + 1.0) * period;
+  }
+}
+
+Estimate IdentifierNode::currentEstimate() {
+  return data_kind_ == DataKind::Telemetry ? telemetry_->estimate() : identifier_->estimate();
+}
+
+void IdentifierNode::consumeCurrentLoop(const Sample& s) {
   const SampleStatus status = identifier_->process(s);
   switch (status) {
     case SampleStatus::TimeReset:
@@ -143,7 +210,7 @@ void IdentifierNode::consume(const Sample& s) {
 }
 
 void IdentifierNode::publish() {
-  const Estimate e = identifier_->estimate();
+  const Estimate e = currentEstimate();
   unpublished_ = false;
   for (double v : e.parameters)
     if (!std::isfinite(v)) {  // before the data fix the motor's scale there is no estimate to publish
@@ -153,6 +220,9 @@ void IdentifierNode::publish() {
     }
   pub_estimate_.publish(toMessage(e, clock_.stampOf(last_t_), frame_id_));
   ++published_;
+  // The map and the condition monitor follow the current loop's estimates only (telemetry's fit
+  // covers the whole stream, not one operating point's recent state).
+  if (data_kind_ == DataKind::Telemetry) return;
   map_changed_ |= map_.add(e) >= 0;
   if (last_t_ + 1e-12 >= next_map_publish_) {
     publishMap();
@@ -233,6 +303,9 @@ void IdentifierNode::publishMap() {
 }
 
 void IdentifierNode::onTimer(const ros::WallTimerEvent&) {
+  // A stream that paused before its spacing was clear: decided from what came.
+  if (data_kind_ == DataKind::Undecided && pending_.size() >= 2 && (ros::WallTime::now() - last_receive_).toSec() > 0.2)
+    decideDataKind();
   // The stream paused or ended: publish the state after the last sample once, and the map.
   if (unpublished_ && (ros::WallTime::now() - last_receive_).toSec() > 0.2) {
     publish();
@@ -248,7 +321,8 @@ void IdentifierNode::onTimer(const ros::WallTimerEvent&) {
 }
 
 void IdentifierNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
-  const IdentifierCounters& c = identifier_->counters();
+  const Estimate e = currentEstimate();
+  const IdentifierCounters c = data_kind_ == DataKind::Telemetry ? e.counters : identifier_->counters();
   const double silent = (ros::WallTime::now() - last_receive_).toSec();
   // Bad input warns for bad_input_hold after the last of it, then the state of the data shows
   // again (the counters keep the totals).
@@ -269,7 +343,6 @@ void IdentifierNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
     stat.summary(DiagnosticStatus::WARN, "no estimate yet: the data do not determine the motor's scale (no current?)");
   else
     stat.summary(DiagnosticStatus::OK, "running");
-  const Estimate e = identifier_->estimate();
   int poor = 0, identified = 0;
   for (int p = 0; p < kParameterCount; ++p) {
     poor += e.status[p] == ParameterStatus::PoorFit || e.status[p] == ParameterStatus::Implausible;
@@ -287,6 +360,13 @@ void IdentifierNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
     stat.mergeSummaryf(severe ? DiagnosticStatus::ERROR : DiagnosticStatus::WARN, "alarm: %s", toString(k));
   }
   stat.add("method", e.method);
+  stat.add("data", data_kind_ == DataKind::Telemetry   ? "telemetry: the steady-state fit of the samples kept"
+                   : data_kind_ == DataKind::CurrentLoop ? "the current loop's samples"
+                                                         : "not yet known (waiting for samples)");
+  if (data_kind_ == DataKind::Telemetry) {
+    stat.add("telemetry samples kept", telemetry_->size());
+    stat.add("telemetry samples let go (oldest beyond the limit)", telemetry_->forgotten());
+  }
   stat.add("sampling period [s]", e.sample_period);
   stat.add("current noise from the data [A]", std::max(e.fit.noise_std_d, e.fit.noise_std_q));
   stat.add("fit consistent", e.fit.consistent ? "yes" : "no");

@@ -10,6 +10,7 @@
 #include "pmsm_param_id/identification/monitor.hpp"
 #include "pmsm_param_id/identification/motor_map.hpp"
 #include "pmsm_param_id/identification/online_identifier.hpp"
+#include "pmsm_param_id/identification/steady_state.hpp"
 #include "ros_bridge.hpp"
 
 namespace pmsm_param_id {
@@ -24,6 +25,12 @@ class IdentifierNode {
   void onBatch(const DriveSampleBatch::ConstPtr& msg);
   void onSample(const DriveSample::ConstPtr& msg);
   void consume(const Sample& s);
+  /// Telemetry or the current loop's samples, from the first samples' spacing (~data: auto).
+  void decideDataKind();
+  void consumeCurrentLoop(const Sample& s);
+  void consumeTelemetry(const Sample& s);
+  /// The estimate of the path the data take.
+  Estimate currentEstimate();
   void publish();
   void publishMap();
   void publishActiveAlarms(double t);
@@ -34,6 +41,14 @@ class IdentifierNode {
 
   ros::NodeHandle nh_, pnh_;
   std::unique_ptr<OnlineIdentifier> identifier_;
+  // ~data: the current loop's own samples (the identifier above), telemetry (the steady-state fit,
+  // telemetry_), or undecided until kDecisionSamples samples show the spacing (held in pending_).
+  enum class DataKind { Undecided, CurrentLoop, Telemetry };
+  static constexpr std::size_t kDecisionSamples = 5;
+  DataKind data_kind_ = DataKind::Undecided;
+  std::vector<Sample> pending_;
+  std::unique_ptr<TelemetryIdentifier> telemetry_;
+  double telemetry_publish_period_ = 1.0;  // [s] of stamp time between steady-state fits
   StreamClock clock_;
   ros::Subscriber sub_;
   ros::Publisher pub_estimate_;

@@ -124,6 +124,49 @@ TEST(SteadyState, NonFiniteSamplesAreCountedAndLeftOut) {
   EXPECT_NEAR(f.estimate.parameters[kPsiF], clean.estimate.parameters[kPsiF], 1e-3 * clean.estimate.parameters[kPsiF]);
 }
 
+TEST(TelemetryStream, GivesTheLogsFitAndStartsAgainWhereTimeGoesBack) {
+  IdentifierConfig config;
+  const std::vector<Sample> log = samplesOf(dutyCycleTelemetry(4, 0.02, 60.0));
+  TelemetryIdentifier stream(config);
+  for (std::size_t k = 0; k < log.size(); ++k) {
+    ASSERT_EQ(stream.process(log[k]), SampleStatus::Used);
+    if (k == log.size() / 2) (void)stream.fit();  // a fit on the way does not change the final one
+  }
+  const SteadyStateFit whole = fitSteadyState(log, config);
+  const Estimate& e = stream.estimate();
+  for (int p = 0; p < kParameterCount; ++p) {
+    EXPECT_EQ(e.parameters[p], whole.estimate.parameters[p]) << p;
+    EXPECT_EQ(e.status[p], whole.estimate.status[p]) << p;
+  }
+  EXPECT_EQ(e.status[kLq], ParameterStatus::Identified) << e.reason[kLq];
+  // The stamps go back (a looping bag): the samples before are let go, and the fit is the new ones'.
+  const std::vector<Sample> again(log.begin(), log.begin() + static_cast<std::ptrdiff_t>(log.size() / 2));
+  EXPECT_EQ(stream.process(again[0]), SampleStatus::TimeReset);
+  for (std::size_t k = 1; k < again.size(); ++k) stream.process(again[k]);
+  EXPECT_EQ(stream.size(), again.size());
+  const SteadyStateFit half = fitSteadyState(again, config);
+  for (int p = 0; p < kParameterCount; ++p) EXPECT_EQ(stream.estimate().parameters[p], half.estimate.parameters[p]) << p;
+  EXPECT_EQ(stream.estimate().counters.time_resets, 1u);
+}
+
+TEST(TelemetryStream, KeepsTheNewestSamplesUpToItsLimitAndCountsNonFinite) {
+  IdentifierConfig config;
+  const std::vector<Sample> log = samplesOf(dutyCycleTelemetry(5, 0.02, 30.0));
+  TelemetryIdentifier stream(config, 400);
+  Sample bad = log[0];
+  bad.t -= 0.02;  // one period before the log's first
+  bad.i_q = std::nan("");
+  EXPECT_EQ(stream.process(bad), SampleStatus::SkippedNonFinite);
+  for (const Sample& s : log) stream.process(s);
+  EXPECT_LE(stream.size(), 400u);
+  EXPECT_GE(stream.size(), 300u);  // a quarter goes at once
+  EXPECT_EQ(stream.forgotten() + stream.size(), log.size() + 1);
+  const std::vector<Sample> kept(log.end() - static_cast<std::ptrdiff_t>(stream.size()), log.end());
+  const SteadyStateFit newest = fitSteadyState(kept, config);
+  for (int p = 0; p < kParameterCount; ++p) EXPECT_EQ(stream.estimate().parameters[p], newest.estimate.parameters[p]) << p;
+  EXPECT_THROW(TelemetryIdentifier(config, 5), ConfigError);
+}
+
 TEST(LogFormats, VescLayoutRoundTripsAcrossMidnight) {
   const std::vector<SimulatedSample> data = dutyCycleTelemetry(1, 0.02, 2.0);
   const LogFormat vesc = loadLogFormat("vesc");

@@ -15,6 +15,7 @@
 // speed changes.
 #pragma once
 #include <cstddef>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -51,6 +52,41 @@ SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const Identifi
 
 /// The median of the positive, finite spacings of the samples' stamps; 0 where there are none [s].
 double medianSpacing(const std::vector<Sample>& samples);
+
+/// The steady-state fit of a stream (the identifier node's telemetry path): the samples since the
+/// start, or since the stamps last went back, are kept (the newest max_samples of them), and the fit
+/// is redone when estimate() is asked for after new samples. Over the same samples it is exactly
+/// fitSteadyState, so a stream and the log it came from give the same estimate.
+class TelemetryIdentifier {
+ public:
+  /// At most this many samples are kept by default (87 min of a 50 Hz stream, 4.4 min at 1 kHz).
+  static constexpr std::size_t kDefaultMaxSamples = std::size_t{1} << 18;
+
+  /// config: as fitSteadyState's; max_samples >= 2 * the fit's columns (throws ConfigError).
+  explicit TelemetryIdentifier(IdentifierConfig config, std::size_t max_samples = kDefaultMaxSamples);
+
+  /// Keeps the sample. TimeReset where its stamp is before the previous one's (the samples kept
+  /// so far are let go: a looping bag, a restarted drive), SkippedNonFinite for a NaN or inf field
+  /// (kept and counted by the fit, as the log's reading does), Used otherwise.
+  SampleStatus process(const Sample& s);
+  /// The fit of the samples kept (redone only where samples came since the last one).
+  const SteadyStateFit& fit();
+  const Estimate& estimate() { return fit().estimate; }
+  std::size_t size() const { return samples_.size(); }
+  /// Samples let go as the oldest beyond max_samples since the start.
+  std::uint64_t forgotten() const { return forgotten_; }
+  std::uint64_t timeResets() const { return time_resets_; }
+  /// Lets every sample go (a reset).
+  void reset();
+
+ private:
+  IdentifierConfig config_;
+  std::size_t max_samples_;
+  std::vector<Sample> samples_;
+  SteadyStateFit fit_;
+  bool stale_ = true;
+  std::uint64_t forgotten_ = 0, time_resets_ = 0;
+};
 
 /// The dq image's magnitude of the fundamental of tanh(i_phase / width) for a current vector of
 /// magnitude `current` (4/pi for a sharp sign, current / width near zero) [-].

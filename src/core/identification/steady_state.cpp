@@ -1,6 +1,7 @@
 #include "pmsm_param_id/identification/steady_state.hpp"
 
 #include "pmsm_param_id/identification/slow_estimate.hpp"
+#include "pmsm_param_id/io/config_error.hpp"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -8,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <utility>
 
 namespace pmsm_param_id {
 
@@ -431,6 +433,48 @@ SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const Identifi
     out.voltage_timing_std = std::numeric_limits<double>::infinity();
   }
   return out;
+}
+
+TelemetryIdentifier::TelemetryIdentifier(IdentifierConfig config, std::size_t max_samples)
+    : config_(std::move(config)), max_samples_(max_samples) {
+  if (max_samples_ < static_cast<std::size_t>(2 * kColumns))
+    throw ConfigError("telemetry: at most " + std::to_string(max_samples_) + " samples kept; the fit needs " +
+                      std::to_string(2 * kColumns));
+  fit_ = fitSteadyState({}, config_);
+}
+
+SampleStatus TelemetryIdentifier::process(const Sample& s) {
+  SampleStatus status = SampleStatus::Used;
+  if (!samples_.empty() && std::isfinite(s.t) && std::isfinite(samples_.back().t) && s.t < samples_.back().t) {
+    samples_.clear();
+    ++time_resets_;
+    status = SampleStatus::TimeReset;
+  }
+  if (!(std::isfinite(s.t) && std::isfinite(s.u_d) && std::isfinite(s.u_q) && std::isfinite(s.i_d) &&
+        std::isfinite(s.i_q) && std::isfinite(s.omega_e)))
+    status = SampleStatus::SkippedNonFinite;
+  if (samples_.size() >= max_samples_) {  // the oldest quarter goes at once (no shift per sample)
+    const std::size_t drop = std::max<std::size_t>(1, max_samples_ / 4);
+    samples_.erase(samples_.begin(), samples_.begin() + static_cast<std::ptrdiff_t>(drop));
+    forgotten_ += drop;
+  }
+  samples_.push_back(s);
+  stale_ = true;
+  return status;
+}
+
+const SteadyStateFit& TelemetryIdentifier::fit() {
+  if (stale_) {
+    fit_ = fitSteadyState(samples_, config_);
+    fit_.estimate.counters.time_resets += time_resets_;
+    stale_ = false;
+  }
+  return fit_;
+}
+
+void TelemetryIdentifier::reset() {
+  samples_.clear();
+  stale_ = true;
 }
 
 }  // namespace pmsm_param_id
