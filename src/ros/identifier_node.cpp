@@ -53,6 +53,8 @@ IdentifierNode::IdentifierNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
   if (!(map_publish_period_ > 0)) throw ConfigError("parameter ~map_publish_period: must be > 0 [s]");
   map_csv_ = typedParam<std::string>(pnh_, "map_csv", "");
 
+  config_ = config;
+  configured_data_kind_ = data_kind_;
   identifier_ = makeIdentifier(config);
   if (telemetry_max_samples < 12) throw ConfigError("parameter ~telemetry_max_samples: must be >= 12 (the fit's minimum)");
   telemetry_ = std::make_unique<TelemetryIdentifier>(config, static_cast<std::size_t>(telemetry_max_samples));
@@ -78,6 +80,8 @@ IdentifierNode::IdentifierNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
   updater_.add("identifier", this, &IdentifierNode::diagnose);
   last_receive_ = rate_window_start_ = ros::WallTime::now();
   timer_ = nh_.createWallTimer(ros::WallDuration(0.1), &IdentifierNode::onTimer, this);
+  reset_service_ = pnh_.advertiseService("reset", &IdentifierNode::onReset, this);
+  publish_period_service_ = pnh_.advertiseService("set_publish_period", &IdentifierNode::onSetPublishPeriod, this);
   ROS_INFO("identifier '%s' listening on %s (%s, data: %s), publishing %s every %g s of stamp time (telemetry: every %g s)",
            config.method.c_str(), sub_.getTopic().c_str(), input.c_str(), data.c_str(), pub_estimate_.getTopic().c_str(),
            publish_period_, std::max(publish_period_, telemetry_publish_period_));
@@ -320,6 +324,48 @@ void IdentifierNode::onTimer(const ros::WallTimerEvent&) {
   updater_.update();
 }
 
+bool IdentifierNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  identifier_ = makeIdentifier(config_);
+  if (saved_references_.any()) identifier_->restoreReferences(saved_references_);
+  telemetry_->reset();
+  data_kind_ = configured_data_kind_;
+  pending_.clear();
+  monitor_ = ConditionMonitor::forConfig(config_);
+  active_alarms_.clear();
+  map_ = MotorMap(config_.map);
+  map_changed_ = false;
+  clock_.reset();
+  next_publish_ = next_map_publish_ = last_t_ = 0.0;
+  unpublished_ = false;
+  have_index_ = false;
+  ++resets_;
+  publishActiveAlarms(0.0);
+  res.success = true;
+  res.message = "reset: the estimates, alarms, map and data kind start again from the next sample" +
+                std::string(saved_references_.any() ? " (the thermal references stay)" : "");
+  ROS_INFO("%s", res.message.c_str());
+  return true;
+}
+
+bool IdentifierNode::onSetPublishPeriod(SetPublishPeriod::Request& req, SetPublishPeriod::Response& res) {
+  if (!(std::isfinite(req.publish_period) && req.publish_period > 0)) {
+    res.success = false;
+    res.message = "publish_period must be > 0 and finite [s], got " + std::to_string(req.publish_period) +
+                  "; kept " + std::to_string(publish_period_);
+    ROS_WARN("%s", res.message.c_str());
+    return true;
+  }
+  publish_period_ = req.publish_period;
+  next_publish_ = (std::floor(last_t_ / publish_period_ + 1e-9) + 1.0) * publish_period_;
+  pnh_.setParam("publish_period", publish_period_);
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "publish_period %g s (of stamp time)", publish_period_);
+  res.success = true;
+  res.message = buf;
+  ROS_INFO("%s", buf);
+  return true;
+}
+
 void IdentifierNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   const Estimate e = currentEstimate();
   const IdentifierCounters c = data_kind_ == DataKind::Telemetry ? e.counters : identifier_->counters();
@@ -383,6 +429,7 @@ void IdentifierNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("time resets (stamps went backwards)", c.time_resets);
   stat.add("rate [samples/s]", rate_);
   stat.add("estimates published", published_);
+  stat.add("resets (~reset)", resets_);
   stat.add("estimates withheld (no estimate yet)", nonfinite_estimates_);
   for (int p = 0; p < kParameterCount; ++p)
     stat.add(parameterNames()[p], std::string(toString(e.status[p])) + ": " + e.reason[p]);

@@ -2,6 +2,7 @@
 #pragma once
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <ros/ros.h>
+#include <std_srvs/Trigger.h>
 
 #include <map>
 #include <memory>
@@ -11,6 +12,7 @@
 #include "pmsm_param_id/identification/motor_map.hpp"
 #include "pmsm_param_id/identification/online_identifier.hpp"
 #include "pmsm_param_id/identification/steady_state.hpp"
+#include "pmsm_param_id/SetPublishPeriod.h"
 #include "ros_bridge.hpp"
 
 namespace pmsm_param_id {
@@ -37,15 +39,22 @@ class IdentifierNode {
   /// Writes the learnt thermal references to thermal_state_ where they changed.
   void saveThermalState();
   void onTimer(const ros::WallTimerEvent&);
+  /// ~reset: everything learnt from the stream goes (estimates, alarms, map, the data kind); the
+  /// thermal references stay.
+  bool onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
+  /// ~set_publish_period: ~publish_period while running.
+  bool onSetPublishPeriod(SetPublishPeriod::Request& req, SetPublishPeriod::Response& res);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
 
   ros::NodeHandle nh_, pnh_;
+  IdentifierConfig config_;  // as validated at start (a reset builds the identifiers from it again)
   std::unique_ptr<OnlineIdentifier> identifier_;
   // ~data: the current loop's own samples (the identifier above), telemetry (the steady-state fit,
   // telemetry_), or undecided until kDecisionSamples samples show the spacing (held in pending_).
   enum class DataKind { Undecided, CurrentLoop, Telemetry };
   static constexpr std::size_t kDecisionSamples = 5;
   DataKind data_kind_ = DataKind::Undecided;
+  DataKind configured_data_kind_ = DataKind::Undecided;  // ~data (Undecided: auto)
   std::vector<Sample> pending_;
   std::unique_ptr<TelemetryIdentifier> telemetry_;
   double telemetry_publish_period_ = 1.0;  // [s] of stamp time between steady-state fits
@@ -65,6 +74,8 @@ class IdentifierNode {
   std::string thermal_state_;                      // ~thermal_state: the file, or empty
   LearntReferences saved_references_;              // as last read or written
   ros::WallTimer timer_;
+  ros::ServiceServer reset_service_, publish_period_service_;
+  std::uint64_t resets_ = 0;
   diagnostic_updater::Updater updater_;
   std::string frame_id_;
   double publish_period_ = 1e-3;   // [s] of stamp time

@@ -9,7 +9,10 @@ import rostest
 from diagnostic_msgs.msg import DiagnosticArray
 from rosgraph_msgs.msg import Log
 
+from std_srvs.srv import Trigger
+
 from pmsm_param_id.msg import DriveSampleBatch, ElectricalParameters, ParameterEstimate
+from pmsm_param_id.srv import SetPublishPeriod
 
 
 class IdentifierNode(unittest.TestCase):
@@ -113,6 +116,29 @@ class IdentifierNode(unittest.TestCase):
                         self.diag[name].message)
         self.assertEqual(self.counters(name)["time gaps"], "2")
         self.assertEqual(self.counters(name)["malformed messages"], "1")
+
+    def test_reset_forgets_the_stream_and_the_publish_period_changes_while_running(self):
+        # (Runs after test_plant_...: unittest orders the tests by name.)
+        name = "identifiers/fbdapso: identifier"
+        self.assertTrue(self.wait_for(lambda: rospy.has_param("/drive/samples_published")), "plant did not finish")
+        self.assertTrue(self.wait_for(lambda: self.counters(name).get("samples used") == "3000", 30),
+                        str(self.counters(name)))
+        rospy.wait_for_service("/identifiers/fbdapso/reset", 10)
+        r = rospy.ServiceProxy("/identifiers/fbdapso/reset", Trigger)()
+        self.assertTrue(r.success, r.message)
+        self.assertIn("start again", r.message)
+        self.assertTrue(self.wait_for(lambda: self.counters(name).get("resets (~reset)") == "1", 10), str(self.counters(name)))
+        self.assertEqual(self.counters(name)["samples used"], "0")
+        self.assertEqual(self.counters(name)["samples received"], "3000")  # the node's totals stay
+        set_period = rospy.ServiceProxy("/identifiers/fbdapso/set_publish_period", SetPublishPeriod)
+        for bad in (0.0, -1.0, float("nan"), float("inf")):
+            r = set_period(bad)
+            self.assertFalse(r.success, bad)
+            self.assertIn("must be > 0 and finite", r.message)
+        self.assertEqual(rospy.get_param("/identifiers/fbdapso/publish_period"), 0.001)
+        r = set_period(0.02)
+        self.assertTrue(r.success, r.message)
+        self.assertEqual(rospy.get_param("/identifiers/fbdapso/publish_period"), 0.02)
 
     def test_no_samples_gives_a_warning(self):
         name = "silent: identifier"
