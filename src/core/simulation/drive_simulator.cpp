@@ -227,8 +227,11 @@ SimulatedSample DriveSimulator::step() {
   }
   std::array<LegState, 3> legs_now{kLow, kLow, kLow};  // the legs' states in the segment being integrated
   const double v_on = inv.device_drop;
-  // Applied d-q voltage for a plant state inside the period.
-  const auto applied = [&](const PlantState& x) -> Vec2 {
+  // The rotor-frame hold's vector is the same all period (its angle is the period's start).
+  const Vec2 held_at_start = rotate(stator, -theta_start);
+  // Applied d-q voltage for a plant state inside the period; `park` = e^{-j theta_e} of that state
+  // (computed once per stage: the stage's every rotation shares it).
+  const auto applied = [&](const PlantState& x, Phasor park) -> Vec2 {
     if (inv.switching) {
       const std::array<double, 3> i = phaseFromDq(x.i_d, x.i_q, x.theta_e);
       std::array<double, 3> pole{};
@@ -238,12 +241,12 @@ SimulatedSample DriveSimulator::step() {
         if (st == kDead) st = sgn > 0 ? kLow : kHigh;  // the freewheeling diode of the current's sign
         pole[k] = (st == kHigh ? v_dc : 0.0) - v_on * sgn;
       }
-      return rotate(clarke(pole[0], pole[1], pole[2]), -x.theta_e);  // the zero sequence drops out
+      return rotate(clarke(pole[0], pole[1], pole[2]), park);  // the zero sequence drops out
     }
-    Vec2 u = inv.stationary_hold ? rotate(stator, -x.theta_e) : rotate(stator, -theta_start);
+    Vec2 u = inv.stationary_hold ? rotate(stator, park) : held_at_start;
     if (v_err > 0) {  // dead time and device drops: each pole voltage loses v_err against its current
       const std::array<double, 3> abc = phaseFromDq(x.i_d, x.i_q, x.theta_e);
-      const Vec2 e = rotate(clarke(std::tanh(abc[0] / i0), std::tanh(abc[1] / i0), std::tanh(abc[2] / i0)), -x.theta_e);
+      const Vec2 e = rotate(clarke(std::tanh(abc[0] / i0), std::tanh(abc[1] / i0), std::tanh(abc[2] / i0)), park);
       u.x -= v_err * e.x;
       u.y -= v_err * e.y;
     }
@@ -274,10 +277,13 @@ SimulatedSample DriveSimulator::step() {
   Vec2 ideal{0.0, 0.0};
   Vec2 stage_u[4], stage_ideal[4];
   int stage = 0;
+  // (A Park rotation only where a stage needs one: the rotor-frame hold without switching needs none.)
+  const bool stage_rotates = inv.switching || inv.stationary_hold || v_err > 0;
   const auto voltageAt = [&](const PlantState& x) {
-    const Vec2 u = applied(x);
+    const Phasor park = stage_rotates ? phasorOf(-x.theta_e) : Phasor{1.0, 0.0};
+    const Vec2 u = applied(x, park);
     stage_u[stage] = u;
-    stage_ideal[stage] = inv.stationary_hold ? rotate(stator, -x.theta_e) : rotate(stator, -theta_start);
+    stage_ideal[stage] = inv.stationary_hold ? rotate(stator, park) : held_at_start;
     stage = (stage + 1) & 3;
     return u;
   };
