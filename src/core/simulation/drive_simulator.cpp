@@ -205,7 +205,11 @@ SimulatedSample DriveSimulator::step() {
     }
   };
   std::array<Leg, 3> legs{};
-  std::vector<double> breaks{0.0, Ts};
+  // The period's ends and at most four switching instants per leg (no allocation per sample).
+  std::array<double, 14> breaks{};
+  std::size_t break_count = 0;
+  breaks[break_count++] = 0.0;
+  breaks[break_count++] = Ts;
   if (inv.switching) {
     const std::array<double, 3> v = inverseClarke(stator);
     const double zero_sequence = -0.5 * (std::max({v[0], v[1], v[2]}) + std::min({v[0], v[1], v[2]}));
@@ -220,10 +224,11 @@ SimulatedSample DriveSimulator::step() {
       leg.rise_end = leg.rise + inv.dead_time;
       leg.fall_end = std::min(Ts, leg.fall + inv.dead_time);
       for (double b : {leg.rise, leg.rise_end, leg.fall, leg.fall_end})
-        if (b > 0.0 && b < Ts) breaks.push_back(b);
+        if (b > 0.0 && b < Ts) breaks[break_count++] = b;
     }
-    std::sort(breaks.begin(), breaks.end());
-    breaks.erase(std::unique(breaks.begin(), breaks.end()), breaks.end());
+    std::sort(breaks.begin(), breaks.begin() + static_cast<std::ptrdiff_t>(break_count));
+    break_count = static_cast<std::size_t>(std::unique(breaks.begin(), breaks.begin() + static_cast<std::ptrdiff_t>(break_count)) -
+                                           breaks.begin());
   }
   std::array<LegState, 3> legs_now{kLow, kLow, kLow};  // the legs' states in the segment being integrated
   const double v_on = inv.device_drop;
@@ -256,19 +261,17 @@ SimulatedSample DriveSimulator::step() {
   // each segment between switching instants in steps no longer than those.
   const int n = s.drive.integration_substeps;
   const double h_max = Ts / n;
-  struct Step {
-    double h;
-    std::array<LegState, 3> legs;
+  // forEachStep(f): f(h) for each step in order, with legs_now set to the legs' states in it.
+  const auto forEachStep = [&](const auto& f) {
+    for (std::size_t b = 0; b + 1 < break_count; ++b) {
+      const double length = breaks[b + 1] - breaks[b];
+      if (!(length > 0)) continue;
+      const int m = std::max(1, static_cast<int>(std::ceil(length / h_max - 1e-9)));
+      const double mid = 0.5 * (breaks[b] + breaks[b + 1]);
+      legs_now = {legs[0].at(mid), legs[1].at(mid), legs[2].at(mid)};
+      for (int j = 0; j < m; ++j) f(length / m);
+    }
   };
-  std::vector<Step> steps;
-  for (std::size_t b = 0; b + 1 < breaks.size(); ++b) {
-    const double length = breaks[b + 1] - breaks[b];
-    if (!(length > 0)) continue;
-    const int m = std::max(1, static_cast<int>(std::ceil(length / h_max - 1e-9)));
-    const double mid = 0.5 * (breaks[b] + breaks[b + 1]);
-    const std::array<LegState, 3> st{legs[0].at(mid), legs[1].at(mid), legs[2].at(mid)};
-    for (int j = 0; j < m; ++j) steps.push_back({length / m, st});
-  }
 
   // Plant over [t, t + Ts]: classical RK4 with the applied voltage evaluated at every stage.
   // The period's mean applied voltage and the held vector's (what an inverter without error applies),
@@ -315,9 +318,7 @@ SimulatedSample DriveSimulator::step() {
     };
     const MagneticState start = magneticState(plant, s.saturation, x_.i_d, x_.i_q);
     State y{start.psi_d, start.psi_q, x_.omega_m, x_.theta_e};
-    for (const Step& st : steps) {
-      legs_now = st.legs;
-      const double h = st.h;
+    forEachStep([&](const double h) {
       const FluxDerivative k1 = derivative(y);
       const FluxDerivative k2 = derivative(add(y, k1, h / 2));
       const FluxDerivative k3 = derivative(add(y, k2, h / 2));
@@ -330,7 +331,7 @@ SimulatedSample DriveSimulator::step() {
       currentsFromFlux(plant, s.saturation, y.psi_d, y.psi_q, x_.i_d, x_.i_q);
       x_.omega_m = y.omega_m;
       x_.theta_e = y.theta_e;
-    }
+    });
   } else {
     const auto derivative = [&](const PlantState& x) {
       const Vec2 u = voltageAt(x);
@@ -341,9 +342,7 @@ SimulatedSample DriveSimulator::step() {
     const auto add = [](const PlantState& a, const PlantDerivative& d, double k) {
       return PlantState{a.i_d + k * d.di_d, a.i_q + k * d.di_q, a.omega_m + k * d.domega_m, a.theta_e + k * d.dtheta_e};
     };
-    for (const Step& st : steps) {
-      legs_now = st.legs;
-      const double h = st.h;
+    forEachStep([&](const double h) {
       const PlantDerivative k1 = derivative(x_);
       const PlantDerivative k2 = derivative(add(x_, k1, h / 2));
       const PlantDerivative k3 = derivative(add(x_, k2, h / 2));
@@ -353,7 +352,7 @@ SimulatedSample DriveSimulator::step() {
       x_.i_q += h / 6 * (k1.di_q + 2 * k2.di_q + 2 * k3.di_q + k4.di_q);
       x_.omega_m += h / 6 * (k1.domega_m + 2 * k2.domega_m + 2 * k3.domega_m + k4.domega_m);
       x_.theta_e += h / 6 * (k1.dtheta_e + 2 * k2.dtheta_e + 2 * k3.dtheta_e + k4.dtheta_e);
-    }
+    });
   }
   out.u_d_applied = applied_d;
   out.u_q_applied = applied_q;
