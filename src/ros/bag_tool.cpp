@@ -13,7 +13,7 @@
 
 #include "pmsm_param_id/io/config_error.hpp"
 #include "pmsm_param_id/io/sample_csv.hpp"
-#include "ros_bridge.hpp"
+#include "pmsm_param_id/ros/ros_bridge.hpp"
 
 using namespace pmsm_param_id;
 

@@ -1,5 +1,5 @@
 // identifier node: see identifier_node.hpp and README (parameters, topics).
-#include "identifier_node.hpp"
+#include "pmsm_param_id/ros/identifier_node.hpp"
 #include "pmsm_param_id/io/config_error.hpp"
 
 int main(int argc, char** argv) {

@@ -1,4 +1,4 @@
-#include "identifier_node.hpp"
+#include "pmsm_param_id/ros/identifier_node.hpp"
 
 #include <cmath>
 

@@ -1,0 +1,45 @@
+// The identifier and the plant simulator as nodelets: many of them in one manager process share
+// its threads, and a batch published by a plant reaches an identifier in the same manager as a
+// pointer (no serialisation). Parameters and topics as the nodes' (identifier_node.hpp,
+// plant_simulator.hpp).
+#include <nodelet/nodelet.h>
+#include <pluginlib/class_list_macros.hpp>
+
+#include <memory>
+
+#include "pmsm_param_id/ros/identifier_node.hpp"
+#include "pmsm_param_id/ros/plant_simulator.hpp"
+
+namespace pmsm_param_id {
+
+class IdentifierNodelet : public nodelet::Nodelet {
+  void onInit() override {
+    try {
+      node_ = std::make_unique<IdentifierNode>(getNodeHandle(), getPrivateNodeHandle());
+    } catch (const std::exception& e) {  // a nodelet cannot exit: it says why and stays idle
+      NODELET_FATAL("%s (this identifier does nothing)", e.what());
+    }
+  }
+  std::unique_ptr<IdentifierNode> node_;
+};
+
+class PlantSimulatorNodelet : public nodelet::Nodelet {
+  void onInit() override {
+    try {
+      plant_ = std::make_unique<PlantSimulator>(getPrivateNodeHandle());
+    } catch (const std::exception& e) {
+      NODELET_FATAL("%s (this plant does nothing)", e.what());
+      return;
+    }
+    // Paced by a wall timer on the nodelet's queue: the manager's worker threads run every plant,
+    // no thread per plant (with a thread each, 64 motors' median latency was 231 ms, with timers
+    // 163 ms, two worker threads, scripts/fleet_measure.py).
+    plant_->start(getNodeHandle());
+  }
+  std::unique_ptr<PlantSimulator> plant_;
+};
+
+}  // namespace pmsm_param_id
+
+PLUGINLIB_EXPORT_CLASS(pmsm_param_id::IdentifierNodelet, nodelet::Nodelet)
+PLUGINLIB_EXPORT_CLASS(pmsm_param_id::PlantSimulatorNodelet, nodelet::Nodelet)
