@@ -367,7 +367,8 @@ bool IdentifierNode::onSetPublishPeriod(SetPublishPeriod::Request& req, SetPubli
 }
 
 void IdentifierNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
-  const Estimate e = currentEstimate();
+  // (Telemetry: the last published fit; fitting again here would double its cost.)
+  const Estimate e = data_kind_ == DataKind::Telemetry ? telemetry_->lastFit().estimate : identifier_->estimate();
   const IdentifierCounters c = data_kind_ == DataKind::Telemetry ? e.counters : identifier_->counters();
   const double silent = (ros::WallTime::now() - last_receive_).toSec();
   // Bad input warns for bad_input_hold after the last of it, then the state of the data shows

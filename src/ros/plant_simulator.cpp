@@ -138,22 +138,33 @@ std::uint64_t PlantSimulator::run() {
 
 void PlantSimulator::start(ros::NodeHandle nh) {
   advertise();
-  // Every tick publishes the batches that have fallen due; one batch's duration apart.
-  const double batch_wall = realtime_ > 0 ? batch_ * scenario_.drive.sample_period / realtime_ : 1e-3;
-  timer_ = nh.createWallTimer(ros::WallDuration(std::max(1e-4, batch_wall)), &PlantSimulator::onTick, this);
+  // A one-shot timer, armed again after each tick for the moment the next batch falls due (a
+  // periodic one at the batch's duration published up to a batch late, by its phase).
+  timer_ = nh.createWallTimer(ros::WallDuration(0.05), &PlantSimulator::onTick, this, true);
 }
 
 void PlantSimulator::onTick(const ros::WallTimerEvent&) {
   if (stop_ || phase_ == Phase::Done) return;
+  const auto rearm = [&](double seconds) {  // a one-shot timer re-arms only from stopped
+    timer_.stop();
+    timer_.setPeriod(ros::WallDuration(std::max(1e-5, seconds)));
+    timer_.start();
+  };
   switch (phase_) {
     case Phase::Waiting:
       if (subscribersReady()) {
         phase_ = Phase::Settling;  // let the remaining connections settle, as run() does
         settle_until_ = ros::WallTime::now() + ros::WallDuration(0.5);
+        rearm(0.5);
+      } else {
+        rearm(0.05);
       }
       return;
     case Phase::Settling:
-      if (ros::WallTime::now() < settle_until_) return;
+      if (ros::WallTime::now() < settle_until_) {
+        rearm((settle_until_ - ros::WallTime::now()).toSec());
+        return;
+      }
       begin();
       phase_ = Phase::Running;
       break;
@@ -167,8 +178,9 @@ void PlantSimulator::onTick(const ros::WallTimerEvent&) {
   if (sim_->done()) {
     finish();
     phase_ = Phase::Done;
-    timer_.stop();
+    return;
   }
+  rearm(realtime_ > 0 ? nextDue() - (ros::WallTime::now() - wall_start_).toSec() : 0.0);
 }
 
 }  // namespace pmsm_param_id

@@ -72,6 +72,8 @@ class TelemetryIdentifier {
   /// The fit of the samples kept (redone only where samples came since the last one).
   const SteadyStateFit& fit();
   const Estimate& estimate() { return fit().estimate; }
+  /// The last fit done, without fitting again (for a status display between fits).
+  const SteadyStateFit& lastFit() const { return fit_; }
   std::size_t size() const { return samples_.size(); }
   /// Samples let go as the oldest beyond max_samples since the start.
   std::uint64_t forgotten() const { return forgotten_; }

@@ -63,7 +63,7 @@ class PlantSimulator {
   ros::WallTime wait_start_, wall_start_, settle_until_;
   std::uint64_t published_ = 0;
   enum class Phase { Waiting, Settling, Running, Done } phase_ = Phase::Waiting;
-  ros::WallTimer timer_;
+  ros::WallTimer timer_;  // one-shot, armed for the next batch's due time
 };
 
 }  // namespace pmsm_param_id
