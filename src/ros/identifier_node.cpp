@@ -103,8 +103,10 @@ void IdentifierNode::onBatch(const DriveSampleBatch::ConstPtr& msg) {
   expected_index_ = msg->first_index + msg->u_d.size();
   have_index_ = true;
   try {
+    // The samples' times from the stream's index where the batch continues it (stamp jitter).
+    const BatchTiming::Start start = batch_timing_.start(clock_, *msg);
     for (std::size_t k = 0; k < msg->u_d.size(); ++k)
-      consume(toSample(*msg, k, clock_.seconds(msg->header.stamp, k, msg->sample_period)));
+      consume(toSample(*msg, k, clock_.seconds(start.anchor, start.offset + k, msg->sample_period)));
   } catch (const std::exception& e) {  // whatever it is, one message's problem never ends the node
     ++bad_messages_;
     ROS_ERROR_THROTTLE(1.0, "dropping the rest of a sample batch: %s", e.what());
@@ -335,6 +337,7 @@ bool IdentifierNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Res
   map_ = MotorMap(config_.map);
   map_changed_ = false;
   clock_.reset();
+  batch_timing_.reset();
   next_publish_ = next_map_publish_ = last_t_ = 0.0;
   unpublished_ = false;
   have_index_ = false;
@@ -428,6 +431,7 @@ void IdentifierNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("malformed messages", bad_messages_);
   stat.add("time gaps", c.gaps);
   stat.add("time resets (stamps went backwards)", c.time_resets);
+  stat.add("batch stamps re-anchored (drifted from the index's time)", batch_timing_.reanchored());
   stat.add("rate [samples/s]", rate_);
   stat.add("estimates published", published_);
   stat.add("resets (~reset)", resets_);

@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Test node of identifier_node.test."""
 import math
+import random
 import time
 import unittest
 
@@ -82,8 +83,7 @@ class IdentifierNode(unittest.TestCase):
         bad.i_d.pop()                                            # malformed: arrays of different lengths
         pub.publish(bad)
         pub.publish(self.batch(t0 + dt * 4, 200))
-        # Its first sample a tenth of a period after the previous one: skipped as too close, the rest
-        # of the batch kept (the node's time stays at the last used sample).
+        # Stamped 0.9 periods early but continuing the index: stamp jitter, its times from the index.
         pub.publish(self.batch(t0 + dt * 5 - rospy.Duration(0.9e-4), 250))
         pub.publish(self.batch(t0, 0))                           # stamps go backwards: the bag looped
         name = "probe: identifier"
@@ -94,15 +94,13 @@ class IdentifierNode(unittest.TestCase):
         self.assertEqual(c["samples dropped (index gaps)"], "50")
         self.assertEqual(c["malformed messages"], "1")
         self.assertEqual(c["time gaps"], "1")
-        self.assertEqual(c["samples skipped (stamp too close)"], "1")
+        self.assertEqual(c["samples skipped (stamp too close)"], "0")
         self.assertEqual(c["samples received"], "300")
         self.assertEqual(self.diag[name].level, 1)  # WARN
         # Every good sample was used. This synthetic signal is no motor (no consistent inductance), so
         # no estimate is published at all rather than a made-up one; the diagnostics say so.
-        self.assertTrue(self.wait_for(lambda: self.counters(name).get("samples used") == "298", 10),
+        self.assertTrue(self.wait_for(lambda: self.counters(name).get("samples used") == "299", 10),
                         str(self.counters(name)))
-        self.assertTrue(self.wait_for(lambda: any(m.name == "/probe" and "less than a quarter period" in m.msg
-                                                  for m in self.log), 10), "no warning for the too-close sample")
         self.assertTrue(all(math.isfinite(v) for p in self.probe for v in (p.R_s, p.L_d, p.L_q, p.psi_f)))
         # A stamp 4e9 s later (beyond ros::Duration's 2^31 s): a gap, not an abort.
         pub.publish(self.batch(rospy.Time(4000005000), 300))
@@ -139,6 +137,26 @@ class IdentifierNode(unittest.TestCase):
         r = set_period(0.02)
         self.assertTrue(r.success, r.message)
         self.assertEqual(rospy.get_param("/identifiers/fbdapso/publish_period"), 0.02)
+
+    def test_batches_stamped_on_arrival_take_their_times_from_the_index(self):
+        # A drive that stamps each batch when it sends it: +-2 periods of jitter on 50-sample batches.
+        pub = rospy.Publisher("/jitter_samples", DriveSampleBatch, queue_size=100)
+        self.assertTrue(self.wait_for(lambda: pub.get_num_connections() > 0, 20))
+        rng = random.Random(7)
+        t0, n, period = 7000.0, 50, 1e-4
+        for j in range(40):
+            pub.publish(self.batch(rospy.Time(t0 + j * n * period + rng.uniform(-2e-4, 2e-4)), j * n))
+        # A clock that drifted 30 ms from the drive's (more than half a batch): one step, counted.
+        pub.publish(self.batch(rospy.Time(t0 + 40 * n * period + 0.03), 40 * n))
+        name = "jitter: identifier"
+        self.assertTrue(self.wait_for(lambda: self.counters(name).get("samples received") == "2050", 30),
+                        str(self.counters(name)))
+        c = self.counters(name)
+        self.assertEqual(c["samples skipped (stamp too close)"], "0")
+        self.assertEqual(c["time resets (stamps went backwards)"], "0")
+        self.assertEqual(c["batch stamps re-anchored (drifted from the index's time)"], "1")
+        self.assertEqual(c["time gaps"], "1")  # the 30 ms step only
+        self.assertEqual(c["samples used"], "2050")
 
     def test_no_samples_gives_a_warning(self):
         name = "silent: identifier"

@@ -59,6 +59,7 @@ class IdentifierNode {
   std::unique_ptr<TelemetryIdentifier> telemetry_;
   double telemetry_publish_period_ = 1.0;  // [s] of stamp time between steady-state fits
   StreamClock clock_;
+  BatchTiming batch_timing_;
   ros::Subscriber sub_;
   ros::Publisher pub_estimate_;
   ros::Publisher pub_events_;

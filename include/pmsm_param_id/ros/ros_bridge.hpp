@@ -84,6 +84,54 @@ class StreamClock {
   bool has_origin_ = false;
 };
 
+/// The sample times of a stream of batches. A batch that continues the stream's sample index
+/// (first_index where the last one ended) at the same period takes its times from the index, counted
+/// from the stamp of the batch that began the stretch: a drive that stamps its batches on arrival
+/// jitters them by more than a period, the index does not. Where a continuing batch's stamp parts
+/// from the index's time by more than half a batch (and 20 periods), the drive's clock and ROS's
+/// have drifted apart: the stretch begins again at that stamp (one step in time, which the
+/// identifier handles as a gap or a close sample). A batch that does not continue (a gap in the
+/// index, a restarted drive, another period) begins a stretch at its own stamp.
+class BatchTiming {
+ public:
+  /// The seconds on `clock` of the batch's sample 0 and the count of periods after the stretch's
+  /// stamp: sample k is at clock.seconds(anchor(), offset + k, period).
+  struct Start {
+    ros::Time anchor;
+    std::uint64_t offset = 0;
+  };
+  Start start(StreamClock& clock, const DriveSampleBatch& b) {
+    (void)clock.seconds(b.header.stamp);  // the clock's origin follows the stamps (a restart)
+    const std::uint64_t n = b.u_d.size();
+    bool keep = anchored_ && b.first_index == next_index_ && b.sample_period == period_ && b.first_index >= anchor_index_;
+    if (keep) {
+      const double offset_s = static_cast<double>(b.first_index - anchor_index_) * period_;
+      const double predicted_ns = static_cast<double>(anchor_.toNSec()) + 1e9 * offset_s;
+      const double deviation = (static_cast<double>(b.header.stamp.toNSec()) - predicted_ns) * 1e-9;
+      const double tolerance = std::max(0.5 * static_cast<double>(n) * period_, 20.0 * period_);
+      keep = std::abs(deviation) <= tolerance;
+      if (!keep) ++reanchored_;
+    }
+    if (!keep) {
+      anchor_ = b.header.stamp;
+      anchor_index_ = b.first_index;
+      period_ = b.sample_period;
+      anchored_ = true;
+    }
+    next_index_ = b.first_index + n;
+    return {anchor_, b.first_index - anchor_index_};
+  }
+  void reset() { anchored_ = false; }
+  /// Continuing batches whose stamps had drifted more than the tolerance from the index's time.
+  std::uint64_t reanchored() const { return reanchored_; }
+
+ private:
+  bool anchored_ = false;
+  ros::Time anchor_;
+  std::uint64_t anchor_index_ = 0, next_index_ = 0, reanchored_ = 0;
+  double period_ = 0.0;
+};
+
 inline Sample toSample(const DriveSampleBatch& b, std::size_t k, double t) {
   Sample s{t, b.u_d[k], b.u_q[k], b.i_d[k], b.i_q[k], b.omega_e[k]};
   if (b.theta_e.size() == b.u_d.size()) s.theta_e = b.theta_e[k];
