@@ -22,63 +22,118 @@ const char* kBatchTopic = "/drive/samples_batch";
 const char* kTruthTopic = "/drive/true_parameters";
 const ros::Time kOrigin(1000.0);  // stamp of t = 0 in bags made from CSV logs
 
+// The sampling period: the median spacing, refined over the longest stretch of spacings within 1 %
+// of it (a Unix-epoch time column carries its values to about 0.24 us: single spacings of 100 us
+// are 0.2 % off, a stretch's mean is not).
+double samplePeriodOf(const std::vector<Sample>& samples) {
+  std::vector<double> dts;
+  for (std::size_t k = 1; k < samples.size(); ++k) {
+    const double dt = samples[k].t - samples[k - 1].t;
+    if (std::isfinite(dt) && dt > 0) dts.push_back(dt);
+  }
+  if (dts.empty()) return 0.0;
+  std::nth_element(dts.begin(), dts.begin() + static_cast<long>(dts.size() / 2), dts.end());
+  const double median = dts[dts.size() / 2];
+  std::size_t best_start = 0, best_length = 0, start = 0;
+  for (std::size_t k = 1; k <= samples.size(); ++k) {
+    const bool regular = k < samples.size() && std::abs(samples[k].t - samples[k - 1].t - median) <= 0.01 * median;
+    if (regular) continue;
+    if (k - 1 - start > best_length) {
+      best_length = k - 1 - start;
+      best_start = start;
+    }
+    start = k;
+  }
+  if (best_length < 2) return median;
+  return (samples[best_start + best_length].t - samples[best_start].t) / static_cast<double>(best_length);
+}
+
 int csv2bag(const std::string& csv, const std::string& bag_path, std::size_t batch) {
   const SampleLog log = readSampleCsv(csv);
   if (log.samples.size() < 2) throw InputError(csv + ": fewer than 2 samples");
-  std::vector<double> dts;
-  for (std::size_t k = 1; k < log.samples.size(); ++k) {
-    const double dt = log.samples[k].t - log.samples[k - 1].t;
-    if (std::isfinite(dt) && dt > 0) dts.push_back(dt);
-  }
-  if (dts.empty()) throw InputError(csv + ": time never increases");
-  std::nth_element(dts.begin(), dts.begin() + static_cast<long>(dts.size() / 2), dts.end());
-  const double Ts = dts[dts.size() / 2];
-  rosbag::Bag bag(bag_path + ".tmp", rosbag::bagmode::Write);
-  DriveSampleBatch msg;
-  std::size_t written = 0, skipped = 0, messages = 0;
-  double first_t = 0;
-  ParameterVector truth{};
-  auto flush = [&]() {
-    if (msg.u_d.empty()) return;
-    const auto none = [](const std::vector<double>& v) { return std::all_of(v.begin(), v.end(), [](double a) { return std::isnan(a); }); };
-    if (none(msg.theta_e)) msg.theta_e.clear();
-    if (none(msg.v_dc)) msg.v_dc.clear();
-    bag.write(kBatchTopic, msg.header.stamp, msg);
-    if (log.has_truth) bag.write(kTruthTopic, msg.header.stamp, toMessage(truth, msg.header.stamp));
-    written += msg.u_d.size();
-    ++messages;
-    msg = DriveSampleBatch();
-  };
-  for (std::size_t k = 0; k < log.samples.size(); ++k) {
-    const Sample& s = log.samples[k];
-    if (!std::isfinite(s.t) || s.t < 0) {
-      std::fprintf(stderr, "%s:%zu: time '%g' cannot be stamped: row skipped\n", csv.c_str(), log.line_numbers[k], s.t);
-      ++skipped;
-      continue;
+  const double Ts = samplePeriodOf(log.samples);
+  if (!(Ts > 0)) throw InputError(csv + ": time never increases");
+  // ros::Time holds up to 2^32 s: a time column beyond that is in another unit.
+  for (std::size_t k = 0; k < log.samples.size(); ++k)
+    if (std::isfinite(log.samples[k].t) && log.samples[k].t > 4.0e9)
+    {
+      char value[32];
+      std::snprintf(value, sizeof value, "%.6g", log.samples[k].t);
+      throw InputError(csv + ":" + std::to_string(log.line_numbers[k]) + ": time " + value +
+                       " s is beyond ROS time's range (2^32 s): is the time column in ns or us? Convert it to seconds");
     }
-    const std::size_t n = msg.u_d.size();
-    const bool on_grid = n > 0 && std::abs(s.t - (first_t + static_cast<double>(n) * Ts)) <= 1e-6 * Ts;
-    if (n >= batch || (n > 0 && !on_grid)) flush();
-    if (msg.u_d.empty()) {
-      first_t = s.t;
-      msg.header.stamp = kOrigin + ros::Duration(s.t);
-      msg.sample_period = Ts;
-      msg.first_index = k;
-      if (log.has_truth) truth = log.truth[k];
+  const std::string tmp = bag_path + ".tmp";
+  std::size_t written = 0, skipped = 0, messages = 0, restarts = 0;
+  try {
+    rosbag::Bag bag(tmp, rosbag::bagmode::Write);
+    DriveSampleBatch msg;
+    double first_t = 0, previous_t = -INFINITY;
+    std::size_t index_base = 0;
+    // Playback follows the record times: they never go back, so a log whose time restarts plays its
+    // stretches one after the other (the stamps go back once, and the identifier restarts once).
+    ros::Time record_time = kOrigin, last_record = kOrigin;
+    ParameterVector truth{};
+    auto flush = [&]() {
+      if (msg.u_d.empty()) return;
+      const auto none = [](const std::vector<double>& v) { return std::all_of(v.begin(), v.end(), [](double a) { return std::isnan(a); }); };
+      if (none(msg.theta_e)) msg.theta_e.clear();
+      if (none(msg.v_dc)) msg.v_dc.clear();
+      bag.write(kBatchTopic, record_time, msg);
+      if (log.has_truth) bag.write(kTruthTopic, record_time, toMessage(truth, msg.header.stamp));
+      last_record = record_time;
+      written += msg.u_d.size();
+      ++messages;
+      msg = DriveSampleBatch();
+    };
+    for (std::size_t k = 0; k < log.samples.size(); ++k) {
+      const Sample& s = log.samples[k];
+      if (!std::isfinite(s.t) || s.t < 0) {
+        std::fprintf(stderr, "%s:%zu: time '%g' cannot be stamped: row skipped\n", csv.c_str(), log.line_numbers[k], s.t);
+        ++skipped;
+        continue;
+      }
+      if (s.t < previous_t) {
+        ++restarts;
+        index_base = k;  // a restarted drive counts its samples from 0 again
+        std::fprintf(stderr, "%s:%zu: time goes back from %.9g to %.9g s: played after what comes before it (the "
+                     "identifier restarts there)\n", csv.c_str(), log.line_numbers[k], previous_t, s.t);
+      }
+      previous_t = s.t;
+      const std::size_t n = msg.u_d.size();
+      // On the batch's grid within a millionth of a period, or within the time column's own
+      // resolution (8 ulps: a Unix-epoch column's 0.24 us).
+      const double tolerance = std::max(1e-6 * Ts, 8.0 * (std::nextafter(s.t, INFINITY) - s.t));
+      const bool on_grid = n > 0 && std::abs(s.t - (first_t + static_cast<double>(n) * Ts)) <= tolerance;
+      if (n >= batch || (n > 0 && !on_grid)) flush();
+      if (msg.u_d.empty()) {
+        first_t = s.t;
+        msg.header.stamp.fromSec(kOrigin.toSec() + s.t);  // (a Duration would stop at 2^31 s)
+        record_time = std::max(msg.header.stamp, messages > 0 ? last_record + ros::Duration(Ts) : kOrigin);
+        msg.sample_period = Ts;
+        msg.first_index = k - index_base;
+        if (log.has_truth) truth = log.truth[k];
+      }
+      msg.u_d.push_back(s.u_d);
+      msg.u_q.push_back(s.u_q);
+      msg.i_d.push_back(s.i_d);
+      msg.i_q.push_back(s.i_q);
+      msg.omega_e.push_back(s.omega_e);
+      msg.theta_e.push_back(s.theta_e);
+      msg.v_dc.push_back(s.v_dc);
     }
-    msg.u_d.push_back(s.u_d);
-    msg.u_q.push_back(s.u_q);
-    msg.i_d.push_back(s.i_d);
-    msg.i_q.push_back(s.i_q);
-    msg.omega_e.push_back(s.omega_e);
-    msg.theta_e.push_back(s.theta_e);
-    msg.v_dc.push_back(s.v_dc);
+    flush();
+    bag.close();
+  } catch (...) {
+    std::remove(tmp.c_str());  // no half-written bag left behind
+    throw;
   }
-  flush();
-  bag.close();
-  if (std::rename((bag_path + ".tmp").c_str(), bag_path.c_str()) != 0) throw std::runtime_error(bag_path + ": cannot write");
-  std::printf("wrote %zu samples in %zu messages (T_s = %.6g s) to %s%s\n", written, messages, Ts, bag_path.c_str(),
-              skipped ? " (some rows skipped, see above)" : "");
+  if (std::rename(tmp.c_str(), bag_path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw InputError(bag_path + ": cannot write");
+  }
+  std::printf("wrote %zu samples in %zu messages (T_s = %.6g s) to %s%s%s\n", written, messages, Ts, bag_path.c_str(),
+              skipped ? " (some rows skipped, see above)" : "",
+              restarts ? " (the time restarts, see above)" : "");
   return 0;
 }
 

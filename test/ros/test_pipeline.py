@@ -598,6 +598,41 @@ class CsvToBag(unittest.TestCase):
         self.assertEqual(sum(len(m.i_q) for m in after), 200)
         self.assertTrue(all(len(m.v_dc) == 0 for m in after))
 
+    def test_time_columns_that_restart_are_in_ns_or_unix_epoch(self):
+        tmp = tempfile.mkdtemp(prefix="pmsm_csv2bag_")
+        header = "t,u_d,u_q,i_d,i_q,omega_e\n"
+        row = lambda t, k: "%s,%g,100,%g,9,418.9\n" % (t, -50 + math.sin(k), 0.1 * math.cos(k))
+        # Unix-epoch seconds at 10 kHz: the column resolves 0.24 us; batches stay whole and the period exact.
+        epoch, epoch_bag = os.path.join(tmp, "epoch.csv"), os.path.join(tmp, "epoch.bag")
+        with open(epoch, "w") as f:
+            f.write(header + "".join(row("%.6f" % (1.7e9 + k * 1e-4), k) for k in range(20000)))
+        r = tool("bag_tool", "csv2bag", epoch, epoch_bag)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("wrote 20000 samples in 200 messages (T_s = 0.0001 s)", r.stdout)
+        # A time column in ns: one line naming the unit, exit 2, no half-written bag.
+        ns, ns_bag = os.path.join(tmp, "ns.csv"), os.path.join(tmp, "ns.bag")
+        with open(ns, "w") as f:
+            f.write(header + "".join(row("%d" % (1700000000000000000 + k * 100000), k) for k in range(100)))
+        r = tool("bag_tool", "csv2bag", ns, ns_bag)
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertIn("is the time column in ns or us?", r.stderr)
+        self.assertEqual([n for n in os.listdir(tmp) if n.startswith("ns.bag")], [])
+        # A log whose time restarts once: its stretches play one after the other, the stamps go back once.
+        back, back_bag = os.path.join(tmp, "back.csv"), os.path.join(tmp, "back.bag")
+        with open(back, "w") as f:
+            f.write(header + "".join(row("%.4f" % (k * 1e-4), k) for _ in range(2) for k in range(3000)))
+        r = tool("bag_tool", "csv2bag", back, back_bag)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("back.csv:3002: time goes back from 0.2999 to 0 s", r.stderr)
+        with rosbag.Bag(back_bag) as bag:
+            batches = [(t.to_nsec(), m.header.stamp.to_nsec(), m.first_index)
+                       for _, m, t in bag.read_messages(topics=["/drive/samples_batch"])]
+        self.assertEqual(len(batches), 60)
+        self.assertEqual([b[0] for b in batches], sorted(b[0] for b in batches))  # played in the log's order
+        backs = [k for k in range(1, len(batches)) if batches[k][1] < batches[k - 1][1]]
+        self.assertEqual(backs, [30])
+        self.assertEqual(batches[30][2], 0)  # the restarted stretch counts from 0
+
     def test_not_a_csv_is_one_clear_line(self):
         tmp = tempfile.mkdtemp(prefix="pmsm_csv2bag_")
         bad = os.path.join(tmp, "bad.csv")
