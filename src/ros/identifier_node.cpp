@@ -160,6 +160,7 @@ void IdentifierNode::consumeTelemetry(const Sample& s) {
     case SampleStatus::TimeReset:
       ROS_WARN("stamps went backwards (a looping bag?): the steady-state fit starts again from this sample");
       next_publish_ = 0.0;
+      restartHistory();
       break;
     case SampleStatus::SkippedNonFinite:
       ROS_WARN_THROTTLE(1.0, "a sample with a NaN or inf value: left out of the fit");
@@ -184,8 +185,9 @@ void IdentifierNode::consumeCurrentLoop(const Sample& s) {
   const SampleStatus status = identifier_->process(s);
   switch (status) {
     case SampleStatus::TimeReset:
-      ROS_WARN("stamps went backwards (a looping bag?): the identifier restarted from its initial values");
+      ROS_WARN("stamps went backwards (a looping bag?): the identifier, the monitor and the map restarted");
       next_publish_ = 0.0;
+      restartHistory();
       break;
     case SampleStatus::Gap:
       ROS_WARN_THROTTLE(1.0, "gap in the sample stream at t = %.6f s: fitness blocks restarted", s.t);
@@ -326,23 +328,29 @@ void IdentifierNode::onTimer(const ros::WallTimerEvent&) {
   updater_.update();
 }
 
+void IdentifierNode::restartHistory() {
+  monitor_ = ConditionMonitor::forConfig(config_);
+  active_alarms_.clear();
+  map_ = MotorMap(config_.map);
+  map_changed_ = false;
+  next_map_publish_ = 0.0;
+  ++history_restarts_;
+  publishActiveAlarms(0.0);
+}
+
 bool IdentifierNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
   identifier_ = makeIdentifier(config_);
   if (saved_references_.any()) identifier_->restoreReferences(saved_references_);
   telemetry_->reset();
   data_kind_ = configured_data_kind_;
   pending_.clear();
-  monitor_ = ConditionMonitor::forConfig(config_);
-  active_alarms_.clear();
-  map_ = MotorMap(config_.map);
-  map_changed_ = false;
+  restartHistory();
   clock_.reset();
   batch_timing_.reset();
   next_publish_ = next_map_publish_ = last_t_ = 0.0;
   unpublished_ = false;
   have_index_ = false;
   ++resets_;
-  publishActiveAlarms(0.0);
   res.success = true;
   res.message = "reset: the estimates, alarms, map and data kind start again from the next sample" +
                 std::string(saved_references_.any() ? " (the thermal references stay)" : "");
@@ -435,6 +443,7 @@ void IdentifierNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("rate [samples/s]", rate_);
   stat.add("estimates published", published_);
   stat.add("resets (~reset)", resets_);
+  stat.add("monitor and map restarts (time resets, ~reset)", history_restarts_);
   stat.add("estimates withheld (no estimate yet)", nonfinite_estimates_);
   for (int p = 0; p < kParameterCount; ++p)
     stat.add(parameterNames()[p], std::string(toString(e.status[p])) + ": " + e.reason[p]);

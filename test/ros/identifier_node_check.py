@@ -95,6 +95,7 @@ class IdentifierNode(unittest.TestCase):
         self.assertEqual(c["malformed messages"], "1")
         self.assertEqual(c["time gaps"], "1")
         self.assertEqual(c["samples skipped (stamp too close)"], "0")
+        self.assertEqual(c["monitor and map restarts (time resets, ~reset)"], "1")  # with the time reset
         self.assertEqual(c["samples received"], "300")
         self.assertEqual(self.diag[name].level, 1)  # WARN
         # Every good sample was used. This synthetic signal is no motor (no consistent inductance), so
@@ -126,6 +127,7 @@ class IdentifierNode(unittest.TestCase):
         self.assertTrue(r.success, r.message)
         self.assertIn("start again", r.message)
         self.assertTrue(self.wait_for(lambda: self.counters(name).get("resets (~reset)") == "1", 10), str(self.counters(name)))
+        self.assertEqual(self.counters(name)["monitor and map restarts (time resets, ~reset)"], "1")
         self.assertEqual(self.counters(name)["samples used"], "0")
         self.assertEqual(self.counters(name)["samples received"], "3000")  # the node's totals stay
         set_period = rospy.ServiceProxy("/identifiers/fbdapso/set_publish_period", SetPublishPeriod)

@@ -36,6 +36,9 @@ class IdentifierNode {
   void publish();
   void publishMap();
   void publishActiveAlarms(double t);
+  /// The condition monitor's history, its alarms and the map start again (a time reset, ~reset):
+  /// estimates from before are not compared with those after.
+  void restartHistory();
   /// Writes the learnt thermal references to thermal_state_ where they changed.
   void saveThermalState();
   void onTimer(const ros::WallTimerEvent&);
@@ -76,7 +79,7 @@ class IdentifierNode {
   LearntReferences saved_references_;              // as last read or written
   ros::WallTimer timer_;
   ros::ServiceServer reset_service_, publish_period_service_;
-  std::uint64_t resets_ = 0;
+  std::uint64_t resets_ = 0, history_restarts_ = 0;
   diagnostic_updater::Updater updater_;
   std::string frame_id_;
   double publish_period_ = 1e-3;   // [s] of stamp time
