@@ -190,7 +190,8 @@ void IdentifierNode::consumeCurrentLoop(const Sample& s) {
       restartHistory();
       break;
     case SampleStatus::Gap:
-      ROS_WARN_THROTTLE(1.0, "gap in the sample stream at t = %.6f s: fitness blocks restarted", s.t);
+      ROS_WARN_THROTTLE(1.0, "gap in the sample stream at stamp %.6f s: fitness blocks restarted",
+                        clock_.stampOf(s.t).toSec());
       break;
     case SampleStatus::SkippedNonFinite:
       ROS_WARN_THROTTLE(1.0, "skipping a sample with a NaN or inf value (%llu so far)",
@@ -203,7 +204,8 @@ void IdentifierNode::consumeCurrentLoop(const Sample& s) {
                         static_cast<unsigned long long>(identifier_->counters().skipped_too_close));
       return;
     case SampleStatus::PeriodChanged:
-      ROS_WARN("the sampling period changed at t = %.6f s (now %.4g s): statistics restarted at the new rate", s.t,
+      ROS_WARN("the sampling period changed at stamp %.6f s (now %.4g s): statistics restarted at the new rate",
+               clock_.stampOf(s.t).toSec(),
                identifier_->samplePeriod());
       break;
     case SampleStatus::Used:

@@ -3,6 +3,7 @@
 #include <rosgraph_msgs/Clock.h>
 
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include "pmsm_param_id/io/config_error.hpp"
@@ -118,7 +119,11 @@ void PlantSimulator::finish() {
   ROS_INFO("published %llu samples (%.3g s of drive time) in %.3g s of wall time",
            static_cast<unsigned long long>(published_), static_cast<double>(published_) * scenario_.drive.sample_period,
            (ros::WallTime::now() - wall_start_).toSec());
-  pnh_.setParam("samples_published", static_cast<int>(published_));
+  // A parameter's integer is 32 bits (XML-RPC): beyond it (60 h at 10 kHz) the count goes as a double.
+  if (published_ <= static_cast<std::uint64_t>(std::numeric_limits<int>::max()))
+    pnh_.setParam("samples_published", static_cast<int>(published_));
+  else
+    pnh_.setParam("samples_published", static_cast<double>(published_));
 }
 
 std::uint64_t PlantSimulator::run() {
