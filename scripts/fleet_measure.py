@@ -21,39 +21,37 @@ PAGE = os.sysconf("SC_PAGE_SIZE")
 HZ = os.sysconf("SC_CLK_TCK")
 
 
-def identifier_pids(method):
-    out = {}
+def processes():
+    """(pid, argv) of every process, argv as bytes."""
     for pid in os.listdir("/proc"):
         if not pid.isdigit():
             continue
         try:
             with open("/proc/%s/cmdline" % pid, "rb") as f:
-                args = f.read().split(b"\0")
+                yield int(pid), f.read().split(b"\0")
         except OSError:
             continue
+
+
+def identifier_pids(method):
+    out = {}
+    for pid, args in processes():
         if args and args[0].endswith(b"/identifier"):
             try:  # roslaunch passes the namespace in the environment
-                with open("/proc/%s/environ" % pid, "rb") as f:
+                with open("/proc/%d/environ" % pid, "rb") as f:
                     env = dict(e.split(b"=", 1) for e in f.read().split(b"\0") if b"=" in e)
             except OSError:
                 continue
             if b"ROS_NAMESPACE" in env:
-                out[int(pid)] = env[b"ROS_NAMESPACE"].decode().rstrip("/") + "/"
+                out[pid] = env[b"ROS_NAMESPACE"].decode().rstrip("/") + "/"
     return out
 
 
 def manager_pid():
-    for pid in os.listdir("/proc"):
-        if not pid.isdigit():
-            continue
-        try:
-            with open("/proc/%s/cmdline" % pid, "rb") as f:
-                args = f.read().split(b"\0")
-        except OSError:
-            continue
+    for pid, args in processes():
         if len(args) > 1 and args[0].endswith(b"/nodelet") and args[1] == b"manager" and \
-                any(a == b"__name:=fleet_manager" for a in args):
-            return int(pid)
+                b"__name:=fleet_manager" in args:
+            return pid
     return None
 
 

@@ -2,11 +2,11 @@
 """Test node of identifier_node.test."""
 import math
 import random
-import time
 import unittest
 
 import rospy
 import rostest
+from ros_wait import wait_for
 from diagnostic_msgs.msg import DiagnosticArray
 from rosgraph_msgs.msg import Log
 
@@ -34,12 +34,7 @@ class IdentifierNode(unittest.TestCase):
             cls.diag[s.name] = s
 
     def wait_for(self, predicate, timeout=60.0):
-        deadline = time.time() + timeout
-        while time.time() < deadline and not rospy.is_shutdown():
-            if predicate():
-                return True
-            time.sleep(0.05)
-        return False
+        return wait_for(predicate, timeout)
 
     def test_plant_and_identifier_converge_without_losing_samples(self):
         self.assertTrue(self.wait_for(lambda: rospy.has_param("/drive/samples_published")), "plant did not finish")

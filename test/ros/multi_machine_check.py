@@ -1,24 +1,19 @@
 #!/usr/bin/env python3
 """Test node of multi_machine.test."""
-import time
 import unittest
 from urllib.parse import urlparse
 
 import rosgraph
 import rospy
 import rostest
+from ros_wait import wait_for
 
 from pmsm_param_id.msg import ElectricalParameters, ParameterEstimate
 
 
 class MultiMachine(unittest.TestCase):
     def wait_for(self, predicate, timeout):
-        deadline = time.time() + timeout
-        while time.time() < deadline and not rospy.is_shutdown():
-            if predicate():
-                return True
-            time.sleep(0.05)
-        return False
+        return wait_for(predicate, timeout)
 
     def test_each_node_advertises_its_machine_and_every_sample_crosses(self):
         estimates, truth = [], []

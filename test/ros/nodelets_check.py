@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
 """Test node of nodelets.test."""
 import subprocess
-import time
 import unittest
 
 import rosnode
 import rospy
 import rostest
+from ros_wait import wait_for
 from rosgraph_msgs.msg import Log
 
 from pmsm_param_id.msg import ElectricalParameters, ParameterEstimate
@@ -14,12 +14,7 @@ from pmsm_param_id.msg import ElectricalParameters, ParameterEstimate
 
 class Nodelets(unittest.TestCase):
     def wait_for(self, predicate, timeout):
-        deadline = time.time() + timeout
-        while time.time() < deadline and not rospy.is_shutdown():
-            if predicate():
-                return True
-            time.sleep(0.05)
-        return False
+        return wait_for(predicate, timeout)
 
     def test_plant_and_identifiers_in_one_manager_lose_nothing_and_converge(self):
         estimates = {"fbdapso": [], "rls": []}

@@ -11,6 +11,7 @@ import unittest
 import rospkg
 import rospy
 import rostest
+from ros_wait import wait_for
 
 from pmsm_param_id.msg import ActiveAlarms, ElectricalParameters, ParameterEstimate
 
@@ -54,12 +55,7 @@ class ThermalRestart(unittest.TestCase):
             cls.stop(name)
 
     def wait_for(self, predicate, timeout):
-        deadline = time.time() + timeout
-        while time.time() < deadline and not rospy.is_shutdown():
-            if predicate():
-                return True
-            time.sleep(0.02)
-        return False
+        return wait_for(predicate, timeout, poll=0.02)
 
     def drive_time(self):
         return self.truth[-1][0] - self.truth[0][0] if self.truth else 0.0
@@ -83,7 +79,9 @@ class ThermalRestart(unittest.TestCase):
         self.assertTrue(self.wait_for(lambda: self.drive_time() >= 3.4, 60), "the drive did not finish")
         time.sleep(1.0)
         kept = [e for e in self.estimates["kept"] if e.winding_temperature == e.winding_temperature]
-        self.assertGreater(len(kept), 50, "the restarted identifier reported no winding temperature")
+        # (About 1.4 s of drive time after the restart, the slow window's first second included: some
+        # tens of estimates on a quiet machine, fewer on a loaded one.)
+        self.assertGreater(len(kept), 10, "the restarted identifier reported no winding temperature")
         last = kept[-1]
         truth = self.truth_at(last.header.stamp.to_sec())
         forgetful = [e for e in self.estimates["forgetful"] if e.winding_temperature == e.winding_temperature]
