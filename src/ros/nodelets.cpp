@@ -32,8 +32,7 @@ class PlantSimulatorNodelet : public nodelet::Nodelet {
       return;
     }
     // Paced by a wall timer on the nodelet's queue: the manager's worker threads run every plant,
-    // no thread per plant (with a thread each, 64 motors' median latency was 231 ms, with timers
-    // 163 ms, two worker threads, scripts/fleet_measure.py).
+    // no thread per plant sleeping and waking (doc/performance.md, "Fleet").
     plant_->start(getNodeHandle());
   }
   std::unique_ptr<PlantSimulator> plant_;
