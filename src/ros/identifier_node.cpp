@@ -29,7 +29,7 @@ IdentifierNode::IdentifierNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
   thermal_state_ = typedParam<std::string>(pnh_, "thermal_state", "");
   if (!thermal_state_.empty() && !config.thermal.enabled)
     throw ConfigError("parameter ~thermal_state: needs a thermal: block in the identifier config (~config)");
-  publish_period_ = typedParam<double>(pnh_, "publish_period", 1e-3);
+  publish_period_ = typedParam<double>(pnh_, "publish_period", 1e-2);
   if (!(publish_period_ > 0)) throw ConfigError("parameter ~publish_period: must be > 0 [s]");
   timeout_ = typedParam<double>(pnh_, "timeout", 1.0);
   if (!(timeout_ > 0)) throw ConfigError("parameter ~timeout: must be > 0 [s]");

@@ -130,7 +130,7 @@ class IdentifierNode(unittest.TestCase):
             r = set_period(bad)
             self.assertFalse(r.success, bad)
             self.assertIn("must be > 0 and finite", r.message)
-        self.assertEqual(rospy.get_param("/identifiers/fbdapso/publish_period"), 0.001)
+        self.assertEqual(rospy.get_param("/identifiers/fbdapso/publish_period"), 0.01)
         r = set_period(0.02)
         self.assertTrue(r.success, r.message)
         self.assertEqual(rospy.get_param("/identifiers/fbdapso/publish_period"), 0.02)

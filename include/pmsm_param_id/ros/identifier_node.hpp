@@ -82,7 +82,7 @@ class IdentifierNode {
   std::uint64_t resets_ = 0, history_restarts_ = 0;
   diagnostic_updater::Updater updater_;
   std::string frame_id_;
-  double publish_period_ = 1e-3;   // [s] of stamp time
+  double publish_period_ = 1e-2;   // [s] of stamp time
   double timeout_ = 1.0;           // [s] of wall time without samples -> WARN
   double bad_input_hold_ = 10.0;   // [s] of wall time a bad input keeps the diagnostics at WARN
   std::uint64_t bad_input_seen_ = 0;  // bad inputs counted at the last diagnosis
