@@ -171,7 +171,7 @@ void IdentifierNode::consumeTelemetry(const Sample& s) {
   last_t_ = s.t;
   unpublished_ = true;
   const double period = std::max(publish_period_, telemetry_publish_period_);
-  if (s.t + 1e-12 >= next_publish_) {
+  if (s.t + 1e-12 >= next_publish_ && ros::WallTime::now() >= telemetry_fit_allowed_) {
     publish();
     next_publish_ = (std::floor(s.t / period + 1e-9) + 1.0) * period;
   }
@@ -220,7 +220,15 @@ void IdentifierNode::consumeCurrentLoop(const Sample& s) {
 }
 
 void IdentifierNode::publish() {
+  const ros::WallTime fit_start = ros::WallTime::now();
   const Estimate e = currentEstimate();
+  if (data_kind_ == DataKind::Telemetry) {  // the steady-state fit: at most a tenth of the wall time
+    const ros::WallDuration took = ros::WallTime::now() - fit_start;
+    telemetry_fit_allowed_ = ros::WallTime::now() + ros::WallDuration(9.0 * took.toSec());
+    if (took.toSec() > 0.1 * telemetry_publish_period_)
+      ROS_INFO_THROTTLE(60.0, "the steady-state fit of %zu samples took %.2g s: refitted at most every %.2g s of wall time",
+                        telemetry_->size(), took.toSec(), 10.0 * took.toSec());
+  }
   unpublished_ = false;
   for (double v : e.parameters)
     if (!std::isfinite(v)) {  // before the data fix the motor's scale there is no estimate to publish

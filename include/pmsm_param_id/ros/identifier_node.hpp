@@ -61,6 +61,7 @@ class IdentifierNode {
   std::vector<Sample> pending_;
   std::unique_ptr<TelemetryIdentifier> telemetry_;
   double telemetry_publish_period_ = 1.0;  // [s] of stamp time between steady-state fits
+  ros::WallTime telemetry_fit_allowed_;     // the next fit no earlier (fits take at most a tenth of the wall time)
   StreamClock clock_;
   BatchTiming batch_timing_;
   ros::Subscriber sub_;
