@@ -118,7 +118,7 @@ class Bridge:
             stamp = rospy.get_rostime() if self.stamp_path is None else resolve(msg, self.stamp_path)
             if not isinstance(stamp, genpy.Time):
                 raise TypeError('the stamp field is not a time')
-        except (AttributeError, IndexError, TypeError, ValueError) as e:
+        except (AttributeError, IndexError, TypeError, ValueError, genpy.DeserializationError) as e:
             self.bad += 1
             rospy.logwarn_throttle(1.0, 'telemetry bridge: a message dropped (%s; %d so far)' % (e, self.bad))
             return

@@ -322,12 +322,23 @@ void IdentifierNode::publishMap() {
 
 void IdentifierNode::onTimer(const ros::WallTimerEvent&) {
   // A stream that paused before its spacing was clear: decided from what came.
-  if (data_kind_ == DataKind::Undecided && pending_.size() >= 2 && (ros::WallTime::now() - last_receive_).toSec() > 0.2)
-    decideDataKind();
+  if (data_kind_ == DataKind::Undecided && pending_.size() >= 2 && (ros::WallTime::now() - last_receive_).toSec() > 0.2) {
+    try {
+      decideDataKind();
+    } catch (const std::exception& e) {
+      ++bad_messages_;
+      ROS_ERROR_THROTTLE(1.0, "dropping held samples: %s", e.what());
+    }
+  }
   // The stream paused or ended: publish the state after the last sample once, and the map.
   if (unpublished_ && (ros::WallTime::now() - last_receive_).toSec() > 0.2) {
-    publish();
-    publishMap();
+    try {
+      publish();
+      publishMap();
+    } catch (const std::exception& e) {  // never out of a callback: in a nodelet manager it ends every motor
+      unpublished_ = false;
+      ROS_ERROR_THROTTLE(1.0, "no estimate published: %s", e.what());
+    }
   }
   const double window = (ros::WallTime::now() - rate_window_start_).toSec();
   if (window >= 1.0) {

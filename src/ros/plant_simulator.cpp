@@ -148,7 +148,17 @@ void PlantSimulator::start(ros::NodeHandle nh) {
   timer_ = nh.createWallTimer(ros::WallDuration(0.05), &PlantSimulator::onTick, this, true);
 }
 
-void PlantSimulator::onTick(const ros::WallTimerEvent&) {
+void PlantSimulator::onTick(const ros::WallTimerEvent& event) {
+  // Never an exception out of a timer callback: in a nodelet manager it would end every motor.
+  try {
+    tick(event);
+  } catch (const std::exception& e) {
+    ROS_ERROR("the simulated drive stopped: %s", e.what());
+    phase_ = Phase::Done;
+  }
+}
+
+void PlantSimulator::tick(const ros::WallTimerEvent&) {
   if (stop_ || phase_ == Phase::Done) return;
   const auto rearm = [&](double seconds) {  // a one-shot timer re-arms only from stopped
     timer_.stop();

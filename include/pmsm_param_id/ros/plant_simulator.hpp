@@ -49,7 +49,8 @@ class PlantSimulator {
   /// Wall time after the start when the next batch's last sample exists [s].
   double nextDue() const;
   void finish();
-  void onTick(const ros::WallTimerEvent&);
+  void onTick(const ros::WallTimerEvent& event);
+  void tick(const ros::WallTimerEvent&);
 
   ros::NodeHandle pnh_;
   Scenario scenario_;
