@@ -304,7 +304,8 @@ def write_markdown(path, bag_path, data, summary, paper, condition):
         cells += ["" for m in methods if m in paper]
         lines.append("| " + " | ".join(cells) + " |")
         lines += ["", "Recognition time: the first time after which every parameter identified at the end "
-                  "stays within 1 % of truth (doc/algorithm.md). The paper's fitness is on its own scale.", ""]
+                  "stays within 1 % of truth (doc/algorithm.md), to the resolution of the estimates in the bag "
+                  "(the identifiers' ~publish_period: 10 ms by default). The paper's fitness is on its own scale.", ""]
         causes = ["- %s: %s" % (m, summary[m]["likely_cause"]) for m in methods if summary[m]["likely_cause"]]
         if causes:
             lines += ["The model does not fit the data; likely cause:"] + causes + [""]
