@@ -148,6 +148,7 @@ int bag2csv(const std::string& bag_path, const std::string& csv, const std::stri
   for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery(kTruthTopic)))
     if (auto t = m.instantiate<ElectricalParameters>()) truth[t->header.stamp] = {t->R_s, t->L_d, t->L_q, t->psi_f};
   StreamClock clock;
+  BatchTiming timing;  // the node's sample times: from the index where a batch continues the stream
   std::vector<SimulatedSample> rows;
   std::size_t older = 0;  // DriveSampleBatch of an older definition (before v_dc)
   for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery(topic))) {
@@ -161,9 +162,10 @@ int bag2csv(const std::string& bag_path, const std::string& csv, const std::stri
     ParameterVector p{NAN, NAN, NAN, NAN};
     auto it = truth.upper_bound(b->header.stamp);
     if (it != truth.begin()) p = std::prev(it)->second;
+    const BatchTiming::Start start = timing.start(clock, *b);
     for (std::size_t k = 0; k < b->u_d.size(); ++k) {
       SimulatedSample s;
-      s.sample = toSample(*b, k, clock.seconds(b->header.stamp, k, b->sample_period));
+      s.sample = toSample(*b, k, clock.seconds(start.anchor, start.offset + k, b->sample_period));
       s.truth = p;
       rows.push_back(s);
     }
