@@ -1585,6 +1585,35 @@ TEST(DriveModel, TheDataChooseTheDelayOfTheLogsConvention) {
   }
 }
 
+TEST(DriveModel, ADeclaredDelayIsCheckedAgainstALogOfTheAppliedVoltage) {
+  // real_drive.yaml declares the common convention, a log of the reference that acts a period
+  // later. On the same drive's log of the voltage applied over each period the declaration is
+  // wrong by one sample: at its steady operating points the voltage angle absorbs most of it and
+  // psi_f read 1.2 % low at a stated +-0.8 % while the fit passed. The delay's check now reaches
+  // the earlier voltage exactly (the step forward to the period-end voltage), so the declaration is
+  // poor_fit with that cause; on the log of the reference it is right and identifies.
+  const IdentifierConfig declared = loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/real_drive.yaml"));
+  for (const bool applied : {true, false}) {
+    Scenario s = test_helpers::scenario("wc1_applied_log.yaml");
+    s.inverter.log_applied_voltage = applied;
+    const auto data = test_helpers::run(s);
+    const std::string label = applied ? "applied" : "reference";
+    for (const char* method : {"wls", "fbdapso"}) {
+      const Estimate e = identify(samplesOf(data), method, declared);
+      if (applied) {
+        EXPECT_FALSE(e.fit.consistent) << method;
+        for (int p = 0; p < kParameterCount; ++p)
+          EXPECT_EQ(e.status[p], ParameterStatus::PoorFit) << method << " " << parameterNames()[p] << ": " << e.reason[p];
+        EXPECT_NE(e.fit.likely_cause.find("earlier than declared"), std::string::npos) << method << ": " << e.fit.likely_cause;
+      } else {
+        EXPECT_TRUE(e.fit.consistent) << method << ": " << e.fit.likely_cause;
+        EXPECT_TRUE(e.identifiable[kLq] && e.identifiable[kPsiF]) << method << " " << e.reason[kLq] << " / " << e.reason[kPsiF];
+        expectIdentifiedWithinStated(e, data.back().truth, label + " " + method);
+      }
+    }
+  }
+}
+
 TEST(DriveModel, AShortLogsStepsBeforeTheSwitchStillSeparateTheDrivesConstants) {
   // The robot joint behind its inverter, a 1 s log: its load steps (0.25, 0.45 s) and the start-up
   // come before the identifier has the evidence for the real drive's model (0.33 s). The change of

@@ -107,7 +107,7 @@ enum BlockEntryD : int {
   kIntegralOmegaIq,      ///< int omega_e i_q dt [A]
   kIntegralUd,           ///< int u_d dt [V s] (the voltage acting: delay and hold applied)
   kIntegralInverterD,    ///< int s_d dt [s]: shape of the inverter voltage error (see below)
-  kIntegralUdStep,       ///< int (u_d,k - u_d,k-1) dt [V s] (delay diagnosis)
+  kIntegralUdStep,       ///< int of the acting u_d's step [V s] (delay diagnosis: back, u_k - u_k-1, with no delay; forward, u_k+1 - u_k, with one)
   kIntegralInverterWideD,  ///< int s_d dt with twice the zero-crossing width (the fitted shape mix) [s]
   kIntegralInverterBusD,   ///< int (v_dc / v_dc,ref - 1) s_d dt: the dead-time part follows the logged bus [s]
   kDeltaIqInD,           ///< i_q(t_k) - i_q(t_j) [A] (cross-saturation: L_dq di_q/dt in the d axis)

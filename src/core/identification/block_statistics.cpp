@@ -557,8 +557,19 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
       c.A_d = p.A_d + turn * p.applied_q;
       c.A_q = p.A_q + turn * p.applied_d;
     }
-    c.Ustep_d = p.Ustep_d + dt * (p.applied_d - p.applied_prev_d);
-    c.Ustep_q = p.Ustep_q + dt * (p.applied_q - p.applied_prev_q);
+    // The delay's check: the step of the acting voltage, a coefficient a meaning "acts a samples later".
+    // With no delay declared the step back (u_k - u_k-1: a = 1 is the voltage one period late); with a
+    // delay declared the step forward to the voltage of the period's end, which is known without
+    // looking ahead (the next logged voltage: a = -1 is exactly the voltage one period earlier, the
+    // log of the applied voltage that a declared delay misreads; the step back reached only
+    // -0.3 +- 0.09 there, an extrapolation the controller's noisy references do not follow).
+    if (settings_.voltage_delay_samples > 0) {
+      c.Ustep_d = p.Ustep_d + dt * (c.applied_d - p.applied_d);
+      c.Ustep_q = p.Ustep_q + dt * (c.applied_q - p.applied_q);
+    } else {
+      c.Ustep_d = p.Ustep_d + dt * (p.applied_d - p.applied_prev_d);
+      c.Ustep_q = p.Ustep_q + dt * (p.applied_q - p.applied_prev_q);
+    }
     double inv_d = 0.0, inv_q = 0.0;
     const double width = settings_.inverter_zero_crossing_current;
     std::array<double, 2> wide_integral{};
