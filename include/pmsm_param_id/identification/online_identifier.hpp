@@ -156,6 +156,9 @@ class OnlineIdentifier {
   /// Re-fits the window and re-centres a data-driven box whose centre the data's optimum has left
   /// (outside [centre / sqrt(k), centre * sqrt(k)]). Returns true when it moved.
   bool refreshSearchBox();
+  /// Where the last refreshSearchBox() found a consistent fit that determines parameter p with its
+  /// optimum inside the box's inner part [centre / sqrt(k), centre * sqrt(k)] (false before one).
+  bool optimumInside(int p) const { return optimum_inside_[static_cast<std::size_t>(p)]; }
   /// The current noise estimate of the data [A] (0 before it exists).
   double noiseStd() const { return noise_std_; }
   static ParameterVector nanVector();
@@ -189,6 +192,7 @@ class OnlineIdentifier {
   std::uint64_t samples_since_refresh_ = 0;
   ParameterVector watched_optimum_{};
   bool have_watched_ = false;
+  std::array<bool, kParameterCount> optimum_inside_{};
   mutable std::uint64_t fit_blocks_ = ~0ull;  // block count of the cached fit
   mutable FitCheck fit_cache_;
   // The thermal references learnt at a declared cold start (zeros until learnt), and those

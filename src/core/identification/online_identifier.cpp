@@ -537,6 +537,7 @@ void OnlineIdentifier::adoptExactFitTerms(const FitCheck& fit) {
 }
 
 bool OnlineIdentifier::refreshSearchBox() {
+  optimum_inside_.fill(false);
   if (!box_.valid || config_.search.fixed_bounds || !stats_.hasBlocks()) return false;
   const FitCheck fit = checkFit(stats_, config_.assessment, box_.centre, false, config_.inverter.estimate_voltage,
                                 stats_.inverterVoltage(), config_.magnetics.cross_saturation);
@@ -574,6 +575,11 @@ bool OnlineIdentifier::refreshSearchBox() {
       centre[p] = x;
       moved = true;
     }
+  }
+  for (int p = 0; p < kParameterCount; ++p) {
+    const double x = fit.optimum[p];
+    optimum_inside_[static_cast<std::size_t>(p)] =
+        fit.consistent && fitDetermines(fit, p, kCentringRelativeStd) && x >= centre[p] / inner && x <= centre[p] * inner;
   }
   if (!moved) return false;
   setBox(centre);
