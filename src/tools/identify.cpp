@@ -48,12 +48,25 @@ int runSteadyState(const std::string& csv, const SampleLog& log, const Identifie
               "gaps = %llu, time resets = %llu\n",
               f.sample_period, f.samples, f.steady, f.transients, static_cast<unsigned long long>(e.counters.skipped_nonfinite),
               static_cast<unsigned long long>(e.counters.gaps), static_cast<unsigned long long>(e.counters.time_resets));
+  if (config.thermal.enabled) {
+    const auto line = [](const char* name, const Temperature& t) {
+      if (std::isfinite(t.value)) std::printf("  %s temperature = %.1f degC +- %.1f K (at the log's end)\n", name, t.value, t.uncertainty);
+      else std::printf("  %s temperature: not determined to thermal.max_uncertainty\n", name);
+    };
+    line("winding", e.winding_temperature);
+    line("magnet", e.magnet_temperature);
+    std::printf("  thermal trajectory: %zu load or speed changes pin psi_f; R_s's knots every %.3g s%s%s\n",
+                f.thermal_changes, f.thermal_knot_spacing, f.thermal_note.empty() ? "" : "; ", f.thermal_note.c_str());
+  }
   if (!json_out.empty()) {
     json j = estimateJson(e);
     j["steady_state"] = {{"samples", f.samples}, {"steady", f.steady}, {"transients", f.transients},
                          {"zero_crossing_current", f.zero_crossing_current},
                          {"voltage_timing", numberOrNull(f.voltage_timing)},
-                         {"voltage_timing_std", numberOrNull(f.voltage_timing_std)}};
+                         {"voltage_timing_std", numberOrNull(f.voltage_timing_std)},
+                         {"thermal_changes", f.thermal_changes},
+                         {"thermal_knot_spacing", f.thermal_knot_spacing},
+                         {"thermal_note", f.thermal_note}};
     writeJson(json_out, j);
   }
   return 0;

@@ -43,12 +43,22 @@ struct SteadyStateFit {
   double voltage_timing_std = std::numeric_limits<double>::infinity();   ///< its standard deviation [s]
   double noise_std_d = 0.0, noise_std_q = 0.0;  ///< voltage-equation noise from the data [V]
   std::string note;                   ///< one line where the data give too little for a fit
+  /// The thermal trajectory (with a thermal: block): R_s and psi_f over time, psi_f pinned at the
+  /// load and speed changes (doc/algorithm.md section 13). Its temperatures are the estimate's.
+  std::size_t thermal_changes = 0;    ///< load or speed changes that pin psi_f
+  double thermal_knot_spacing = 0.0;  ///< R_s's knots, chosen by BIC [s] (0: no trajectory)
+  LearntReferences thermal_references;  ///< R_s and psi_f at the first steady sample (0: not determined)
+  std::string thermal_note;           ///< why no temperature is reported, where none is
 };
 
 /// The steady-state fit of a whole log (samples in time order; non-finite ones are counted and
 /// left out, a gap or a time going back starts a new stretch for the transient test).
 /// config: its assessment settings (the tolerance, the fit-ratio limit) and the inverter's.
-SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const IdentifierConfig& config);
+/// references: R_s and psi_f at the thermal reference temperature from an earlier part of the
+/// stream (TelemetryIdentifier, once the cold start's samples are let go), in place of those of
+/// the first sample.
+SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const IdentifierConfig& config,
+                              const LearntReferences* references = nullptr);
 
 /// The median of the positive, finite spacings of the samples' stamps; 0 where there are none [s].
 double medianSpacing(const std::vector<Sample>& samples);
@@ -88,6 +98,8 @@ class TelemetryIdentifier {
   std::size_t max_samples_;
   std::vector<Sample> samples_;
   SteadyStateFit fit_;
+  LearntReferences references_;  // of the cold start, kept once its samples are let go
+  bool start_kept_ = true;       // the first sample since the start (or a time reset) is still kept
   bool stale_ = true;
   std::uint64_t forgotten_ = 0, time_resets_ = 0;
 };

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <tuple>
 #include <utility>
 
 namespace pmsm_param_id {
@@ -166,6 +167,330 @@ Vector stdWithHeld(const std::vector<Row>& rows, const std::vector<std::size_t>&
     if (free[static_cast<std::size_t>(j)]) sd(j) = stdOf(f, j);
   return sd;
 }
+
+// ---- The thermal trajectory (doc/algorithm.md section 13) ----------------------------------------
+// Between load and speed changes R_s and psi_f enter the averaged q equation only as
+// R_s i_q + omega_e psi_f, and heating moves both; at a change the two operating points split them.
+// So psi_f (the magnet: heated through the winding and by its own losses, it changes slower) is
+// taken as piecewise linear between the changes, constant before the first and after the last, and
+// R_s (the winding) as piecewise linear on a uniform grid whose spacing the data choose (BIC); the
+// inductances and the drive's constants are the log's. What psi_f's real drift between and beyond
+// its knots could move is added to the stated uncertainty (the largest rate its knots show, over
+// the distance to the nearest knot).
+
+// A stretch needs this many steady samples on each side of a change for the change to pin psi_f.
+constexpr std::size_t kThermalStretch = 10;
+
+struct Sparse {  // one row of the trajectory's design: at most 2 + 2 + 4 entries
+  std::array<int, 8> index{};
+  std::array<double, 8> value{};
+  int size = 0;
+  void add(int j, double v) {
+    if (v == 0.0) return;
+    index[static_cast<std::size_t>(size)] = j;
+    value[static_cast<std::size_t>(size)] = v;
+    ++size;
+  }
+  double dot(const Eigen::VectorXd& b) const {
+    double s = 0.0;
+    for (int k = 0; k < size; ++k) s += value[static_cast<std::size_t>(k)] * b(index[static_cast<std::size_t>(k)]);
+    return s;
+  }
+  void accumulate(double y, double w, Eigen::MatrixXd& A, Eigen::VectorXd& b) const {
+    for (int i = 0; i < size; ++i) {
+      const int r = index[static_cast<std::size_t>(i)];
+      const double wv = w * value[static_cast<std::size_t>(i)];
+      b(r) += wv * y;
+      for (int j = 0; j < size; ++j) A(r, index[static_cast<std::size_t>(j)]) += wv * value[static_cast<std::size_t>(j)];
+    }
+  }
+};
+
+// Hat functions on knots (constant beyond the ends): the two knots and weights at t.
+struct Hat {
+  int j0 = 0, j1 = 0;
+  double w0 = 1.0, w1 = 0.0;
+};
+Hat hatAt(const std::vector<double>& knots, double t) {
+  Hat h;
+  if (knots.size() < 2 || t <= knots.front()) return h;
+  if (t >= knots.back()) {
+    h.j0 = h.j1 = static_cast<int>(knots.size()) - 1;
+    return h;
+  }
+  const int j = static_cast<int>(std::upper_bound(knots.begin(), knots.end(), t) - knots.begin()) - 1;
+  const std::size_t u = static_cast<std::size_t>(j);
+  const double f = (t - knots[u]) / (knots[u + 1] - knots[u]);
+  h.j0 = j;
+  h.j1 = j + 1;
+  h.w0 = 1.0 - f;
+  h.w1 = f;
+  return h;
+}
+
+struct TrajectoryFit {
+  bool ok = false;
+  Eigen::VectorXd beta;
+  Eigen::MatrixXd covariance;
+  std::vector<bool> determined;
+  double mean_square_d = 0.0, mean_square_q = 0.0, chi2 = 0.0;
+  int columns = 0;
+};
+
+// Columns: R_s knots [0, nR), psi_f knots [nR, nR + nP), then L_d, L_q, V, k (where free; V held
+// at V_held otherwise).
+TrajectoryFit fitTrajectory(const std::vector<Sample>& steady, const std::vector<double>& r_knots,
+                            const std::vector<double>& p_knots, double width, const std::array<bool, kColumns>& free,
+                            double V_held, double weight_d, double weight_q) {
+  const int nR = static_cast<int>(r_knots.size()), nP = static_cast<int>(std::max<std::size_t>(1, p_knots.size()));
+  const int n = nR + nP + 4, cLd = nR + nP, cLq = cLd + 1, cV = cLd + 2, cK = cLd + 3;
+  TrajectoryFit out;
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
+  std::vector<Sparse> rd(steady.size()), rq(steady.size());
+  std::vector<double> yd(steady.size()), yq(steady.size());
+  for (std::size_t k = 0; k < steady.size(); ++k) {
+    const Sample& s = steady[k];
+    const Row r = rowOf(s, width);
+    const Hat hr = hatAt(r_knots, s.t), hp = hatAt(p_knots, s.t);
+    Sparse& d = rd[k];
+    Sparse& q = rq[k];
+    d.add(hr.j0, hr.w0 * s.i_d);
+    q.add(hr.j0, hr.w0 * s.i_q);
+    if (hr.j1 != hr.j0) {
+      d.add(hr.j1, hr.w1 * s.i_d);
+      q.add(hr.j1, hr.w1 * s.i_q);
+    }
+    q.add(nR + hp.j0, hp.w0 * s.omega_e);
+    if (hp.j1 != hp.j0) q.add(nR + hp.j1, hp.w1 * s.omega_e);
+    if (free[kLd]) q.add(cLd, r.q(kLd));
+    if (free[kLq]) d.add(cLq, r.d(kLq));
+    if (free[kV]) {
+      d.add(cV, r.d(kV));
+      q.add(cV, r.q(kV));
+    }
+    if (free[kTiming]) {
+      d.add(cK, r.d(kTiming));
+      q.add(cK, r.q(kTiming));
+    }
+    yd[k] = r.u_d - (free[kV] ? 0.0 : V_held * r.d(kV));
+    yq[k] = r.u_q - (free[kV] ? 0.0 : V_held * r.q(kV));
+    d.accumulate(yd[k], weight_d, A, b);
+    q.accumulate(yq[k], weight_q, A, b);
+  }
+  // Equilibrated by the diagonal; numerically null directions (below 1e-12 of the largest) leave
+  // the parameters that load on them undetermined, as the constant fit's solve().
+  Eigen::VectorXd scale = Eigen::VectorXd::Zero(n);
+  for (int j = 0; j < n; ++j)
+    if (A(j, j) > 0 && std::isfinite(A(j, j))) scale(j) = 1.0 / std::sqrt(A(j, j));
+  const Eigen::MatrixXd scaled = scale.asDiagonal() * A * scale.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(scaled);
+  if (eig.info() != Eigen::Success) return out;
+  const Eigen::VectorXd values = eig.eigenvalues();
+  const double largest = values.maxCoeff();
+  if (!(largest > 0)) return out;
+  Eigen::VectorXd inverse = Eigen::VectorXd::Zero(n);
+  out.determined.assign(static_cast<std::size_t>(n), false);
+  for (int j = 0; j < n; ++j) out.determined[static_cast<std::size_t>(j)] = scale(j) > 0;
+  for (int i = 0; i < n; ++i) {
+    if (values(i) > 1e-12 * largest) {
+      inverse(i) = 1.0 / values(i);
+      continue;
+    }
+    for (int j = 0; j < n; ++j)
+      if (scale(j) > 0 && std::abs(eig.eigenvectors()(j, i)) > 1e-3) out.determined[static_cast<std::size_t>(j)] = false;
+  }
+  out.covariance = scale.asDiagonal() * (eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose()) *
+                   scale.asDiagonal();
+  out.beta = out.covariance * b;
+  if (!out.beta.allFinite()) return out;
+  for (std::size_t k = 0; k < steady.size(); ++k) {
+    const double ed = yd[k] - rd[k].dot(out.beta), eq = yq[k] - rq[k].dot(out.beta);
+    out.mean_square_d += ed * ed;
+    out.mean_square_q += eq * eq;
+  }
+  out.chi2 = weight_d * out.mean_square_d + weight_q * out.mean_square_q;
+  out.mean_square_d /= static_cast<double>(steady.size());
+  out.mean_square_q /= static_cast<double>(steady.size());
+  for (int j = 0; j < n; ++j) out.columns += scale(j) > 0;
+  out.ok = true;
+  return out;
+}
+
+// A knot trajectory's value at t, its gradient over the columns added to `gradient`.
+double trajectoryAt(const std::vector<double>& knots, int offset, const Eigen::VectorXd& beta, double t,
+                    Eigen::VectorXd& gradient) {
+  const Hat h = hatAt(knots, t);
+  gradient(offset + h.j0) += h.w0;
+  if (h.j1 != h.j0) gradient(offset + h.j1) += h.w1;
+  return h.w0 * beta(offset + h.j0) + (h.j1 != h.j0 ? h.w1 * beta(offset + h.j1) : 0.0);
+}
+
+// The temperatures at the last steady sample from the thermal trajectory, into out.estimate; the
+// references it determines at the first, into out.thermal_references.
+void thermalTrajectory(const std::vector<Sample>& steady, const std::vector<double>& change_times, double width,
+                       std::array<bool, kColumns> free, double var_d, double var_q, double floor2,
+                       const IdentifierConfig& config, const LearntReferences* given, SteadyStateFit& out) {
+  const ThermalSettings& th = config.thermal;
+  const AssessmentSettings& a = config.assessment;
+  Estimate& e = out.estimate;
+  const double t0 = steady.front().t, span = steady.back().t - t0;
+  // psi_f's knots: the changes with kThermalStretch steady samples on each side (and between two).
+  std::vector<double> p_knots;
+  std::size_t last = 0;
+  for (double c : change_times) {
+    const std::size_t before = static_cast<std::size_t>(
+        std::lower_bound(steady.begin(), steady.end(), c, [](const Sample& s, double x) { return s.t < x; }) - steady.begin());
+    if (before < last + kThermalStretch || before + kThermalStretch > steady.size()) continue;
+    p_knots.push_back(c);
+    last = before;
+  }
+  out.thermal_changes = p_knots.size();
+  if (p_knots.size() < 2) {
+    out.thermal_note = p_knots.empty()
+                           ? "no load or speed change in the log: R_s and psi_f enter it only as R_s i_q + omega_e psi_f, and "
+                             "heating moves both; load or speed changes split them"
+                           : "one load or speed change: how psi_f drifts is not known; a second change shows it";
+    return;
+  }
+  // R_s's grid: span / 2^j with at least kThermalStretch steady samples per interval on average;
+  // the spacing of least BIC (chi^2 at the log's noise + columns x ln(rows)).
+  const double rows = 2.0 * static_cast<double>(steady.size());
+  TrajectoryFit best;
+  std::vector<double> r_knots;
+  double best_bic = std::numeric_limits<double>::infinity();
+  for (int j = 0; j <= 8; ++j) {
+    if (j > 0 && static_cast<double>(steady.size()) / std::exp2(j) < static_cast<double>(kThermalStretch)) break;
+    const double spacing = span / std::exp2(j);
+    std::vector<double> knots;
+    for (int i = 0; i <= (1 << j); ++i) knots.push_back(t0 + spacing * i);
+    const TrajectoryFit f = fitTrajectory(steady, knots, p_knots, width, free, 0.0, 1.0 / var_d, 1.0 / var_q);
+    if (!f.ok) continue;
+    const double bic = f.chi2 + f.columns * std::log(rows);
+    if (bic < best_bic) {
+      best_bic = bic;
+      best = f;
+      r_knots = knots;
+      out.thermal_knot_spacing = spacing;
+    }
+  }
+  if (!best.ok) {
+    out.thermal_note = "the thermal trajectory's fit failed";
+    return;
+  }
+  // Weighted by the larger of each axis's residual and noise, as the constant fit; the drive's
+  // constants held at zero where this fit does not determine them, by the constant fit's rules (V
+  // positive to 50 %, the timing to 0.1 rad of turn at the RMS speed).
+  const double wd = std::max({best.mean_square_d, var_d, floor2}), wq = std::max({best.mean_square_q, var_q, floor2});
+  TrajectoryFit f = fitTrajectory(steady, r_knots, p_knots, width, free, 0.0, 1.0 / wd, 1.0 / wq);
+  {
+    const int cV = static_cast<int>(r_knots.size() + p_knots.size()) + 2, cK = cV + 1;
+    const auto sd = [&](int j) {
+      return f.ok && f.determined[static_cast<std::size_t>(j)] ? std::sqrt(std::max(0.0, f.covariance(j, j)))
+                                                               : std::numeric_limits<double>::infinity();
+    };
+    double omega_ms = 0.0;
+    for (const Sample& s : steady) omega_ms += s.omega_e * s.omega_e / static_cast<double>(steady.size());
+    std::array<bool, kColumns> held = free;
+    if (free[kV] && !(f.ok && f.beta(cV) > 0 && sd(cV) < 0.5 * f.beta(cV))) held[kV] = false;
+    if (free[kTiming] && !(sd(cK) * std::sqrt(omega_ms) < 0.1)) held[kTiming] = false;
+    if (held != free) {
+      free = held;
+      f = fitTrajectory(steady, r_knots, p_knots, width, free, 0.0, 1.0 / wd, 1.0 / wq);
+    }
+  }
+  if (!f.ok) {
+    out.thermal_note = "the thermal trajectory's fit failed";
+    return;
+  }
+  if (!(f.mean_square_d <= a.max_fit_ratio * var_d + floor2 && f.mean_square_q <= a.max_fit_ratio * var_q + floor2)) {
+    out.thermal_note = "the thermal trajectory does not fit the log (a fault, a saturating machine, a change of the "
+                       "drive): no temperature";
+    return;
+  }
+  const int nR = static_cast<int>(r_knots.size()), n = static_cast<int>(f.beta.size());
+  // psi_f's largest drift rate between its knots, and what it may have drifted at t.
+  double rate = 0.0;
+  for (std::size_t i = 1; i < p_knots.size(); ++i)
+    rate = std::max(rate, std::abs(f.beta(nR + static_cast<int>(i)) - f.beta(nR + static_cast<int>(i) - 1)) /
+                              (p_knots[i] - p_knots[i - 1]));
+  const auto psiDrift = [&](double t) {
+    double d = std::numeric_limits<double>::infinity();
+    for (double k : p_knots) d = std::min(d, std::abs(t - k));
+    return rate * d;
+  };
+  // The inverter model's own error (kInverterModelFloor of V, as the constant fit states it): what
+  // it moves the trajectory by.
+  Eigen::VectorXd inverter_shift = Eigen::VectorXd::Zero(n);
+  const int cV = nR + static_cast<int>(p_knots.size()) + 2;
+  if (free[kV] && f.determined[static_cast<std::size_t>(cV)] && f.beta(cV) > 0) {
+    std::array<bool, kColumns> held = free;
+    held[kV] = false;
+    const double V = f.beta(cV);
+    const TrajectoryFit at = fitTrajectory(steady, r_knots, p_knots, width, held, V, 1.0 / wd, 1.0 / wq);
+    const TrajectoryFit moved =
+        fitTrajectory(steady, r_knots, p_knots, width, held, V * (1.0 + kInverterModelFloor), 1.0 / wd, 1.0 / wq);
+    if (at.ok && moved.ok) inverter_shift = moved.beta - at.beta;
+    else inverter_shift.setConstant(std::numeric_limits<double>::infinity());
+  }
+  const Sample& first = steady.front();
+  const Sample& now_sample = steady.back();
+  LearntReferences& learnt = out.thermal_references;
+  learnt.reference_temperature = th.reference_temperature;
+  const LearntReferences none;
+  const LearntReferences& kept = given ? *given : none;
+  // resistance: R_s (psi_f's drift enters it as omega_e / i_q times itself) or psi_f.
+  const auto temperature = [&](const std::vector<double>& knots, int offset, double coefficient, double configured,
+                               double kept_value, double kept_u, bool resistance, double& reference_out,
+                               double& reference_u_out, double& learnt_at) {
+    Temperature result;
+    Eigen::VectorXd g_now = Eigen::VectorXd::Zero(n), g_ref = Eigen::VectorXd::Zero(n);
+    const double now = trajectoryAt(knots, offset, f.beta, now_sample.t, g_now);
+    const double at_start = trajectoryAt(knots, offset, f.beta, first.t, g_ref);
+    const auto determined = [&](const Eigen::VectorXd& g) {
+      for (int j = 0; j < n; ++j)
+        if (g(j) != 0 && !f.determined[static_cast<std::size_t>(j)]) return false;
+      return true;
+    };
+    const double drift_now = psiDrift(now_sample.t) * (resistance ? std::abs(now_sample.omega_e / now_sample.i_q) : 1.0);
+    const double drift_start = psiDrift(first.t) * (resistance ? std::abs(first.omega_e / first.i_q) : 1.0);
+    if (determined(g_ref) && at_start > 0 && std::isfinite(drift_start)) {
+      reference_out = at_start;
+      reference_u_out = (a.confidence_sigmas * std::sqrt(std::max(0.0, g_ref.dot(f.covariance * g_ref))) + drift_start) / at_start;
+      learnt_at = first.t;
+    }
+    if (!determined(g_now) || !(now > 0)) return result;
+    double reference = 0.0, sigma2 = 0.0, bound = 0.0, shift = 0.0;
+    if (given && configured == 0.0 && !(kept_value > 0)) return result;  // the cold start was let go unlearnt
+    if (configured > 0 || kept_value > 0) {  // declared, or kept from earlier in the stream
+      reference = configured > 0 ? configured : kept_value;
+      sigma2 = g_now.dot(f.covariance * g_now) / (reference * reference);
+      bound = drift_now / reference + (configured > 0 ? 0.0 : kept_u * now / reference);
+      shift = std::abs(g_now.dot(inverter_shift)) / reference;
+    } else {
+      if (!determined(g_ref) || !(at_start > 0)) return result;
+      reference = at_start;
+      // d(now / start) = g_now / start - now g_ref / start^2, with the covariance of both.
+      const Eigen::VectorXd g = g_now / at_start - (now / (at_start * at_start)) * g_ref;
+      sigma2 = g.dot(f.covariance * g);
+      bound = drift_now / at_start + drift_start * now / (at_start * at_start);
+      shift = std::abs(g.dot(inverter_shift));
+    }
+    if (!std::isfinite(shift) || !std::isfinite(bound)) return result;
+    result.value = th.reference_temperature + (now / reference - 1.0) / coefficient;
+    result.uncertainty = (a.confidence_sigmas * std::sqrt(std::max(0.0, sigma2)) + bound + shift) / std::abs(coefficient);
+    if (!(result.uncertainty <= th.max_uncertainty)) result = Temperature{};
+    return result;
+  };
+  e.winding_temperature = temperature(r_knots, 0, th.copper_coefficient, th.R_s_at_reference, kept.R_s,
+                                      kept.R_s_relative_uncertainty, true, learnt.R_s, learnt.R_s_relative_uncertainty,
+                                      learnt.R_s_learnt_at);
+  e.magnet_temperature = temperature(p_knots, nR, th.magnet_coefficient, th.psi_f_at_reference, kept.psi_f,
+                                     kept.psi_f_relative_uncertainty, false, learnt.psi_f,
+                                     learnt.psi_f_relative_uncertainty, learnt.psi_f_learnt_at);
+  if (!std::isfinite(e.winding_temperature.value) && !std::isfinite(e.magnet_temperature.value))
+    out.thermal_note = "the data determine neither temperature to thermal.max_uncertainty";
+}
 }  // namespace
 
 double medianSpacing(const std::vector<Sample>& samples) {
@@ -193,7 +518,8 @@ double inverterFundamental(double current, double width) {
   return 4.0 / M_PI * sum * h / 3.0;
 }
 
-SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const IdentifierConfig& config) {
+SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const IdentifierConfig& config,
+                              const LearntReferences* references) {
   const AssessmentSettings& a = config.assessment;
   SteadyStateFit out;
   Estimate& e = out.estimate;
@@ -432,6 +758,36 @@ SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const Identifi
     out.voltage_timing = std::numeric_limits<double>::quiet_NaN();
     out.voltage_timing_std = std::numeric_limits<double>::infinity();
   }
+  if (config.thermal.enabled) {
+    // The load and speed changes: the steps between neighbours, those within kThermalStretch
+    // samples of each other one change, at its middle.
+    std::vector<double> changes;
+    std::size_t cluster_end = 0;
+    double cluster_start_t = 0.0, cluster_end_t = 0.0;
+    bool open = false;
+    for (std::size_t k = 1; k < n; ++k) {
+      if (!step[k]) continue;
+      const double t = 0.5 * (finite[k - 1].t + finite[k].t);
+      if (open && k <= cluster_end + kThermalStretch) {
+        cluster_end = k;
+        cluster_end_t = t;
+        continue;
+      }
+      if (open) changes.push_back(0.5 * (cluster_start_t + cluster_end_t));
+      open = true;
+      cluster_end = k;
+      cluster_start_t = cluster_end_t = t;
+    }
+    if (open) changes.push_back(0.5 * (cluster_start_t + cluster_end_t));
+    bool ordered = true;
+    for (std::size_t k = 1; k < steady.size(); ++k) ordered = ordered && steady[k].t > steady[k - 1].t;
+    if (!ordered) {
+      out.thermal_note = "the log's time goes back: temperatures need one stretch of time";
+    } else {
+      thermalTrajectory(steady, changes, width, all, std::max(f.noise_d, floor2), std::max(f.noise_q, floor2),
+                        floor2, config, references, out);
+    }
+  }
   return out;
 }
 
@@ -447,6 +803,8 @@ SampleStatus TelemetryIdentifier::process(const Sample& s) {
   SampleStatus status = SampleStatus::Used;
   if (!samples_.empty() && std::isfinite(s.t) && std::isfinite(samples_.back().t) && s.t < samples_.back().t) {
     samples_.clear();
+    references_ = LearntReferences{};
+    start_kept_ = true;
     ++time_resets_;
     status = SampleStatus::TimeReset;
   }
@@ -457,6 +815,7 @@ SampleStatus TelemetryIdentifier::process(const Sample& s) {
     const std::size_t drop = std::max<std::size_t>(1, max_samples_ / 4);
     samples_.erase(samples_.begin(), samples_.begin() + static_cast<std::ptrdiff_t>(drop));
     forgotten_ += drop;
+    start_kept_ = false;
   }
   samples_.push_back(s);
   stale_ = true;
@@ -465,7 +824,25 @@ SampleStatus TelemetryIdentifier::process(const Sample& s) {
 
 const SteadyStateFit& TelemetryIdentifier::fit() {
   if (stale_) {
-    fit_ = fitSteadyState(samples_, config_);
+    // While the first sample since the start is kept, the thermal trajectory's references are of
+    // that sample (a declared cold start): the best determined of them is kept; once the sample is
+    // let go, the kept ones stand in.
+    const bool from_start = start_kept_;
+    fit_ = fitSteadyState(samples_, config_, from_start ? nullptr : &references_);
+    if (from_start) {
+      const LearntReferences& r = fit_.thermal_references;
+      references_.reference_temperature = r.reference_temperature;
+      if (r.R_s > 0 && !(references_.R_s > 0 && references_.R_s_relative_uncertainty <= r.R_s_relative_uncertainty)) {
+        references_.R_s = r.R_s;
+        references_.R_s_relative_uncertainty = r.R_s_relative_uncertainty;
+        references_.R_s_learnt_at = r.R_s_learnt_at;
+      }
+      if (r.psi_f > 0 && !(references_.psi_f > 0 && references_.psi_f_relative_uncertainty <= r.psi_f_relative_uncertainty)) {
+        references_.psi_f = r.psi_f;
+        references_.psi_f_relative_uncertainty = r.psi_f_relative_uncertainty;
+        references_.psi_f_learnt_at = r.psi_f_learnt_at;
+      }
+    }
     fit_.estimate.counters.time_resets += time_resets_;
     stale_ = false;
   }
@@ -474,6 +851,8 @@ const SteadyStateFit& TelemetryIdentifier::fit() {
 
 void TelemetryIdentifier::reset() {
   samples_.clear();
+  references_ = LearntReferences{};
+  start_kept_ = true;
   stale_ = true;
 }
 
