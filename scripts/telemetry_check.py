@@ -107,6 +107,21 @@ def thermal_table(results):
         print(f"{name:<12} {share:>8.0f}% {median:>17.2f} {worst_seed:>13.2f} {worst:>8.2f} {outside:>7}/{reported:<7}")
 
 
+def over_seeds(seeds, run):
+    """run(seed, folder) for seeds 1..N in a temporary folder, progress on stderr; Ctrl-C keeps what finished."""
+    results = []
+    start = time.time()
+    try:
+        with tempfile.TemporaryDirectory() as folder:
+            for seed in range(1, seeds + 1):
+                results.append(run(seed, folder))
+                left = (time.time() - start) / seed * (seeds - seed)
+                print(f"[{seed}/{seeds}] seeds done; about {left:.0f} s left", file=sys.stderr)
+    except KeyboardInterrupt:
+        print(f"interrupted: {len(results)} of {seeds} seeds finished; the table covers those", file=sys.stderr)
+    return results
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--tool", required=True)
@@ -127,33 +142,16 @@ def main():
             ap.error(f"{args.scenario}: no thermal: block, so no temperatures to check")
         coefficients = (float(thermal.get("copper_coefficient", 3.93e-3)), float(thermal.get("magnet_coefficient", -1.2e-3)),
                         float(thermal["reference_temperature"]))
-        results = []
-        start = time.time()
-        try:
-            with tempfile.TemporaryDirectory() as folder:
-                for seed in range(1, args.seeds + 1):
-                    results.append(thermal_seed(args.tool, args.scenario, args.period, args.config, args.every, seed,
-                                                folder, coefficients))
-                    left = (time.time() - start) / seed * (args.seeds - seed)
-                    print(f"[{seed}/{args.seeds}] seeds done; about {left:.0f} s left", file=sys.stderr)
-        except KeyboardInterrupt:
-            print(f"interrupted: {len(results)} of {args.seeds} seeds finished; the table covers those", file=sys.stderr)
+        results = over_seeds(args.seeds, lambda seed, folder: thermal_seed(
+            args.tool, args.scenario, args.period, args.config, args.every, seed, folder, coefficients))
         if not results:
             return 1
         print(f"{os.path.basename(args.scenario)} as telemetry every {args.period} s, identified up to every {args.every} s "
               f"with {os.path.basename(args.config)}, {len(results)} seeds")
         thermal_table(results)
         return 0
-    results = []
-    start = time.time()
-    try:
-        with tempfile.TemporaryDirectory() as folder:
-            for seed in range(1, args.seeds + 1):
-                results.append(run_seed(args.tool, args.scenario, args.period, args.format, seed, folder, args.config))
-                left = (time.time() - start) / seed * (args.seeds - seed)
-                print(f"[{seed}/{args.seeds}] seeds done; about {left:.0f} s left", file=sys.stderr)
-    except KeyboardInterrupt:
-        print(f"interrupted: {len(results)} of {args.seeds} seeds finished; the table covers those", file=sys.stderr)
+    results = over_seeds(args.seeds, lambda seed, folder: run_seed(
+        args.tool, args.scenario, args.period, args.format, seed, folder, args.config))
     if not results:
         return 1
     print(f"{os.path.basename(args.scenario)} as telemetry every {args.period} s{' (' + args.format + ')' if args.format else ''}, "
