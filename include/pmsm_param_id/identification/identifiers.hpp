@@ -34,7 +34,8 @@ class SwarmIdentifier : public OnlineIdentifier {
  private:
   std::unique_ptr<ParticleSwarm> swarm_;
   std::unique_ptr<OutputErrorWindow> output_error_;  // the paper's fitness, when configured
-  std::uint64_t face_restarts_ = 0;  // swarms started again off a face the data left
+  std::uint64_t face_restarts_ = 0;  // swarms started again off a face the data left since the start
+  void newSwarm();
   template <class F>
   void iterate(const F& fitness);
 };

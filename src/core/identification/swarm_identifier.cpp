@@ -48,6 +48,11 @@ struct BlockFitness {
 }  // namespace
 
 void SwarmIdentifier::restart() {
+  face_restarts_ = 0;  // the start (again, after a reset): the configured seed's stream
+  newSwarm();
+}
+
+void SwarmIdentifier::newSwarm() {
   // Particle 0 starts at the configured initial values when there are any (the paper's "far away"
   // start); otherwise every particle starts at random in the data-driven box. A start again off a
   // face draws from another stream of the same seed.
@@ -101,7 +106,7 @@ void SwarmIdentifier::iterate(const F& fitness) {
       for (int p = 0; p < kParameterCount; ++p) held = held || (edge[static_cast<std::size_t>(p)] && optimumInside(p));
       if (held) {
         ++face_restarts_;
-        restart();
+        newSwarm();
       }
     }
   }
