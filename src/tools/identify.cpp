@@ -37,6 +37,9 @@ int runSteadyState(const std::string& csv, const SampleLog& log, const Identifie
               e.fit.consistent ? "consistent with the noise" : "POOR", e.fit.fit_ratio_d, e.fit.fit_ratio_q, f.noise_std_d,
               f.noise_std_q);
   if (!e.fit.likely_cause.empty()) std::printf("  likely cause: %s\n", e.fit.likely_cause.c_str());
+  if (f.from_trajectory)
+    std::printf("  one set of parameters does not hold across the log (the motor heats): the values are the thermal "
+                "trajectory's at its end (doc/algorithm.md section 13)\n");
   std::printf("  inverter voltage = %.4g V %s %s (zero-crossing width %.3g A)\n", e.inverter_voltage,
               toString(e.inverter_status), e.inverter_reason.c_str(), f.zero_crossing_current);
   std::printf("  voltage timing (data's fit) = %.3g +- %.2g s: the applied vector turned by that times omega_e\n",
@@ -66,7 +69,8 @@ int runSteadyState(const std::string& csv, const SampleLog& log, const Identifie
                          {"voltage_timing_std", numberOrNull(f.voltage_timing_std)},
                          {"thermal_changes", f.thermal_changes},
                          {"thermal_knot_spacing", f.thermal_knot_spacing},
-                         {"thermal_note", f.thermal_note}};
+                         {"thermal_note", f.thermal_note},
+                         {"from_thermal_trajectory", f.from_trajectory}};
     writeJson(json_out, j);
   }
   return 0;

@@ -49,6 +49,9 @@ struct SteadyStateFit {
   double thermal_knot_spacing = 0.0;  ///< R_s's knots, chosen by BIC [s] (0: no trajectory)
   LearntReferences thermal_references;  ///< R_s and psi_f at the first steady sample (0: not determined)
   std::string thermal_note;           ///< why no temperature is reported, where none is
+  /// The constant fit failed and the thermal trajectory fits: the estimate is the trajectory's at
+  /// the last sample (R_s and psi_f there; doc/algorithm.md section 13).
+  bool from_trajectory = false;
 };
 
 /// The steady-state fit of a whole log (samples in time order; non-finite ones are counted and

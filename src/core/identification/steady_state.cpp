@@ -325,11 +325,24 @@ double trajectoryAt(const std::vector<double>& knots, int offset, const Eigen::V
   return h.w0 * beta(offset + h.j0) + (h.j1 != h.j0 ? h.w1 * beta(offset + h.j1) : 0.0);
 }
 
-// The temperatures at the last steady sample from the thermal trajectory, into out.estimate; the
-// references it determines at the first, into out.thermal_references.
+// The thermal trajectory's parameters at the last steady sample (R_s and psi_f there, the
+// inductances and drive constants of the log), as the constant fit's FitCheck would state them.
+struct TrajectoryEstimate {
+  bool consistent = false;
+  ParameterVector value{}, relative_std{}, model_floor{};
+  std::array<bool, kParameterCount> determined{};
+  double fit_ratio_d = 0.0, fit_ratio_q = 0.0;
+  double V = std::numeric_limits<double>::quiet_NaN(), V_relative_std = std::numeric_limits<double>::infinity();
+  double timing = std::numeric_limits<double>::quiet_NaN(), timing_std = std::numeric_limits<double>::infinity();
+};
+
+// The thermal trajectory: its parameters at the last steady sample into `now`; with a thermal:
+// block the temperatures there into out.estimate and the references it determines at the first
+// sample into out.thermal_references.
 void thermalTrajectory(const std::vector<Sample>& steady, const std::vector<double>& change_times, double width,
                        std::array<bool, kColumns> free, double var_d, double var_q, double floor2,
-                       const IdentifierConfig& config, const LearntReferences* given, SteadyStateFit& out) {
+                       const IdentifierConfig& config, const LearntReferences* given, SteadyStateFit& out,
+                       TrajectoryEstimate& now) {
   const ThermalSettings& th = config.thermal;
   const AssessmentSettings& a = config.assessment;
   Estimate& e = out.estimate;
@@ -434,6 +447,47 @@ void thermalTrajectory(const std::vector<Sample>& steady, const std::vector<doub
   }
   const Sample& first = steady.front();
   const Sample& now_sample = steady.back();
+  {  // the parameters at the last sample, their statistical spread and what psi_f's drift and V's floor add
+    const int cLd = nR + static_cast<int>(p_knots.size()), cLq = cLd + 1, cK = cLd + 3;
+    const auto spread = [&](const Eigen::VectorXd& g) { return std::sqrt(std::max(0.0, g.dot(f.covariance * g))); };
+    const auto settled = [&](const Eigen::VectorXd& g) {
+      for (int j = 0; j < n; ++j)
+        if (g(j) != 0 && !f.determined[static_cast<std::size_t>(j)]) return false;
+      return true;
+    };
+    Eigen::VectorXd gR = Eigen::VectorXd::Zero(n), gP = Eigen::VectorXd::Zero(n);
+    now.value[kRs] = trajectoryAt(r_knots, 0, f.beta, now_sample.t, gR);
+    now.value[kPsiF] = trajectoryAt(p_knots, nR, f.beta, now_sample.t, gP);
+    now.value[kLd] = free[kLd] ? f.beta(cLd) : std::numeric_limits<double>::quiet_NaN();
+    now.value[kLq] = free[kLq] ? f.beta(cLq) : std::numeric_limits<double>::quiet_NaN();
+    const double drift = psiDrift(now_sample.t);
+    const double moved_R = drift * std::abs(now_sample.omega_e / now_sample.i_q);
+    now.determined[kRs] = settled(gR) && std::isfinite(moved_R);
+    now.determined[kPsiF] = settled(gP) && std::isfinite(drift);
+    now.determined[kLd] = free[kLd] && f.determined[static_cast<std::size_t>(cLd)];
+    now.determined[kLq] = free[kLq] && f.determined[static_cast<std::size_t>(cLq)];
+    const double spread_p[] = {spread(gR), std::sqrt(std::max(0.0, f.covariance(cLd, cLd))),
+                               std::sqrt(std::max(0.0, f.covariance(cLq, cLq))), spread(gP)};
+    const double shift_p[] = {std::abs(gR.dot(inverter_shift)), std::abs(inverter_shift(cLd)), std::abs(inverter_shift(cLq)),
+                              std::abs(gP.dot(inverter_shift))};
+    const double drift_p[] = {moved_R, 0.0, 0.0, drift};
+    for (int p = 0; p < kParameterCount; ++p) {
+      now.relative_std[p] = now.determined[p] ? spread_p[p] / std::abs(now.value[p]) : std::numeric_limits<double>::infinity();
+      now.model_floor[p] = (drift_p[p] + shift_p[p]) / std::abs(now.value[p]);
+    }
+    now.fit_ratio_d = f.mean_square_d / var_d;
+    now.fit_ratio_q = f.mean_square_q / var_q;
+    now.consistent = true;
+    if (free[kV] && f.determined[static_cast<std::size_t>(cV)]) {
+      now.V = f.beta(cV);
+      now.V_relative_std = std::sqrt(std::max(0.0, f.covariance(cV, cV))) / std::abs(now.V);
+    }
+    if (free[kTiming] && f.determined[static_cast<std::size_t>(cK)]) {
+      now.timing = f.beta(cK);
+      now.timing_std = std::sqrt(std::max(0.0, f.covariance(cK, cK)));
+    }
+  }
+  if (!th.enabled) return;
   LearntReferences& learnt = out.thermal_references;
   learnt.reference_temperature = th.reference_temperature;
   const LearntReferences none;
@@ -719,45 +773,11 @@ SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const Identifi
   out.voltage_timing_std = stdOf(f, kTiming);
   fit.voltage_angle = std::numeric_limits<double>::quiet_NaN();  // in omega_e T_s: the PWM period is not in the log
   fit.voltage_angle_std = std::numeric_limits<double>::quiet_NaN();
-  e.parameters = fit.optimum;
-  const Assessment as = assess(e.parameters, fit, {}, a);
-  e.status = as.status;
-  e.reason = as.reason;
-  e.relative_uncertainty = as.relative_uncertainty;
-  // A value outside every motor's range that the data do not determine to the tolerance (a
-  // collinear split at one operating point: R_s i_q and omega_e psi_f are one constant voltage
-  // there, and the fluctuations around it, whose dynamics the averaged equations do not hold, pick
-  // the split) is not determined rather than implausible: the data say nothing against the motor.
-  for (int p = 0; p < kParameterCount; ++p) {
-    const double statistical = a.confidence_sigmas * fit.relative_std[p];
-    if (e.status[p] != ParameterStatus::Implausible || !std::isfinite(e.parameters[p]) ||
-        statistical <= a.max_relative_uncertainty)
-      continue;
-    char buf[200];
-    std::snprintf(buf, sizeof buf,
-                  "the data determine it only to +-%.3g %% (need %.3g %%), and its value lies outside every motor's range: "
-                  "one operating point, or too few apart; load and speed levels further apart determine it",
-                  100 * statistical, 100 * a.max_relative_uncertainty);
-    e.status[p] = ParameterStatus::NotExcited;
-    e.reason[p] = buf;
-  }
-  for (int p = 0; p < kParameterCount; ++p) e.identifiable[static_cast<std::size_t>(p)] = e.status[p] == ParameterStatus::Identified;
-  const InverterAssessment inv = assessInverter(fit, a, config.inverter.max_relative_uncertainty);
-  e.inverter_voltage = fit.inverter_voltage;
-  e.inverter_status = inv.status;
-  e.inverter_reason = inv.reason;
-  e.inverter_relative_uncertainty = inv.relative_uncertainty;
-  if (!reported_free[kV]) {  // held at zero for the values reported
-    e.inverter_voltage = std::numeric_limits<double>::quiet_NaN();
-    e.inverter_status = ParameterStatus::NotExcited;
-    e.inverter_reason = "the data do not determine it (to 50 %): at one current magnitude it acts as a resistance, "
-                        "and R_s reads with it; current magnitudes further apart separate them";
-  }
-  if (!reported_free[kTiming]) {
-    out.voltage_timing = std::numeric_limits<double>::quiet_NaN();
-    out.voltage_timing_std = std::numeric_limits<double>::infinity();
-  }
-  if (config.thermal.enabled) {
+  // A motor that heats within the log does not hold one set of parameters: where the constant fit
+  // fails, and with a thermal: block in any case (its temperatures), the thermal trajectory; where
+  // it fits and the constant fit does not, the values at the log's end are its.
+  TrajectoryEstimate trajectory;
+  if (config.thermal.enabled || !fit.consistent) {
     // The load and speed changes: the steps between neighbours, those within kThermalStretch
     // samples of each other one change, at its middle.
     std::vector<double> changes;
@@ -781,11 +801,74 @@ SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const Identifi
     bool ordered = true;
     for (std::size_t k = 1; k < steady.size(); ++k) ordered = ordered && steady[k].t > steady[k - 1].t;
     if (!ordered) {
-      out.thermal_note = "the log's time goes back: temperatures need one stretch of time";
+      out.thermal_note = "the log's time goes back: the thermal trajectory needs one stretch of time";
     } else {
       thermalTrajectory(steady, changes, width, all, std::max(f.noise_d, floor2), std::max(f.noise_q, floor2),
-                        floor2, config, references, out);
+                        floor2, config, references, out, trajectory);
     }
+  }
+  if (!fit.consistent && trajectory.consistent) {
+    fit.optimum = trajectory.value;
+    fit.determined = trajectory.determined;
+    fit.relative_std = trajectory.relative_std;
+    fit.relative_std_known_inverter = trajectory.relative_std;
+    fit.relative_std_known_timing = trajectory.relative_std;
+    fit.model_floor = trajectory.model_floor;
+    fit.fit_ratio_d = trajectory.fit_ratio_d;
+    fit.fit_ratio_q = trajectory.fit_ratio_q;
+    fit.consistent = true;
+    fit.likely_cause.clear();
+    fit.inverter_voltage = trajectory.V;
+    fit.inverter_relative_std = trajectory.V_relative_std;
+    reported_free[kV] = std::isfinite(trajectory.V);
+    reported_free[kTiming] = std::isfinite(trajectory.timing);
+    out.voltage_timing = trajectory.timing;
+    out.voltage_timing_std = trajectory.timing_std;
+    out.from_trajectory = true;
+  }
+  e.parameters = fit.optimum;
+  const Assessment as = assess(e.parameters, fit, {}, a);
+  e.status = as.status;
+  e.reason = as.reason;
+  e.relative_uncertainty = as.relative_uncertainty;
+  // A value outside every motor's range that the data do not determine to the tolerance (a
+  // collinear split at one operating point: R_s i_q and omega_e psi_f are one constant voltage
+  // there, and the fluctuations around it, whose dynamics the averaged equations do not hold, pick
+  // the split) is not determined rather than implausible: the data say nothing against the motor.
+  for (int p = 0; p < kParameterCount; ++p) {
+    const double statistical = a.confidence_sigmas * fit.relative_std[p];
+    if (e.status[p] != ParameterStatus::Implausible || !std::isfinite(e.parameters[p]) ||
+        statistical <= a.max_relative_uncertainty)
+      continue;
+    char buf[200];
+    std::snprintf(buf, sizeof buf,
+                  "the data determine it only to +-%.3g %% (need %.3g %%), and its value lies outside every motor's range: "
+                  "one operating point, or too few apart; load and speed levels further apart determine it",
+                  100 * statistical, 100 * a.max_relative_uncertainty);
+    e.status[p] = ParameterStatus::NotExcited;
+    e.reason[p] = buf;
+  }
+  if (out.from_trajectory)
+    for (int p = 0; p < kParameterCount; ++p)
+      e.reason[p] += p == kRs || p == kPsiF
+                         ? "; at the log's end, from the thermal trajectory (one set of parameters does not hold: it drifts, "
+                           "psi_f's possible drift since the last load or speed change included)"
+                         : "; from the thermal trajectory (one set of parameters does not hold: R_s and psi_f drift)";
+  for (int p = 0; p < kParameterCount; ++p) e.identifiable[static_cast<std::size_t>(p)] = e.status[p] == ParameterStatus::Identified;
+  const InverterAssessment inv = assessInverter(fit, a, config.inverter.max_relative_uncertainty);
+  e.inverter_voltage = fit.inverter_voltage;
+  e.inverter_status = inv.status;
+  e.inverter_reason = inv.reason;
+  e.inverter_relative_uncertainty = inv.relative_uncertainty;
+  if (!reported_free[kV]) {  // held at zero for the values reported
+    e.inverter_voltage = std::numeric_limits<double>::quiet_NaN();
+    e.inverter_status = ParameterStatus::NotExcited;
+    e.inverter_reason = "the data do not determine it (to 50 %): at one current magnitude it acts as a resistance, "
+                        "and R_s reads with it; current magnitudes further apart separate them";
+  }
+  if (!reported_free[kTiming]) {
+    out.voltage_timing = std::numeric_limits<double>::quiet_NaN();
+    out.voltage_timing_std = std::numeric_limits<double>::infinity();
   }
   return out;
 }
