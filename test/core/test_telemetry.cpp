@@ -254,7 +254,7 @@ TEST(TelemetryStream, KeepsTheColdStartsReferencesOnceItsSamplesAreLetGo) {
   // 500 samples through a stream that keeps 400: the references of the first sample (the declared
   // cold start), learnt while it was kept, stand in once it is let go. Alone they lose the
   // correlation with the present values that the whole trajectory's ratio has, so their stated
-  // uncertainty is wide (about 55 K here, against 10 K reported by default); the value lies within it.
+  // uncertainty is wide (tens of kelvin here, against 10 K reported by default); the value lies within it.
   const std::vector<SimulatedSample> data = heatingTelemetry(250.0, 0.5);
   IdentifierConfig wide = coldStart();
   wide.thermal.max_uncertainty = 1000;
