@@ -238,14 +238,26 @@ void IdentifierNode::publish() {
     }
   pub_estimate_.publish(toMessage(e, clock_.stampOf(last_t_), frame_id_));
   ++published_;
-  // The map and the condition monitor follow the current loop's estimates only (telemetry's fit
-  // covers the whole stream, not one operating point's recent state).
-  if (data_kind_ == DataKind::Telemetry) return;
+  if (data_kind_ == DataKind::Telemetry) {
+    // Telemetry's fit covers the whole stream, not one operating point's recent state: no map, and
+    // of the alarms only the temperatures' (a winding over its limit, a magnet reading hotter than
+    // the winding by more than heat explains); parameter jumps and drift are judged on the current
+    // loop's estimates only.
+    Estimate temperatures = e;
+    temperatures.identifiable.fill(false);
+    raiseAlarms(temperatures);
+    return;
+  }
   map_changed_ |= map_.add(e) >= 0;
   if (last_t_ + 1e-12 >= next_map_publish_) {
     publishMap();
     next_map_publish_ = (std::floor(last_t_ / map_publish_period_ + 1e-9) + 1.0) * map_publish_period_;
   }
+  raiseAlarms(e);
+  saveThermalState();
+}
+
+void IdentifierNode::raiseAlarms(const Estimate& e) {
   for (const AlarmEvent& ev : monitor_.update(e)) {  // alarms only from identified parameters
     ConditionEvent m;
     m.header.stamp = clock_.stampOf(ev.t);
@@ -261,7 +273,6 @@ void IdentifierNode::publish() {
     else active_alarms_.erase(ev.kind);
     publishActiveAlarms(ev.t);
   }
-  saveThermalState();
 }
 
 void IdentifierNode::publishActiveAlarms(double t) {

@@ -36,6 +36,8 @@ class IdentifierNode {
   void publish();
   void publishMap();
   void publishActiveAlarms(double t);
+  /// The condition monitor on an estimate: its events published, the active alarms kept and published.
+  void raiseAlarms(const Estimate& e);
   /// The condition monitor's history, its alarms and the map start again (a time reset, ~reset):
   /// estimates from before are not compared with those after.
   void restartHistory();
