@@ -6,22 +6,14 @@ import math
 import os
 import subprocess
 import tempfile
-import time
 import unittest
 
-import roslib.packages
 import rospkg
 import rospy
 import rostest
 
-from pmsm_param_id.msg import ConditionEvent, ParameterEstimate, TestVescStateStamped
-
-
-def tool():
-    found = roslib.packages.find_node("pmsm_param_id", "pmsm_tool")
-    if not found:
-        raise RuntimeError("pmsm_tool not built")
-    return found[0]
+from pmsm_param_id.msg import ConditionEvent, ParameterEstimate
+from vesc_stream import publish_vesc_log, tool, wait_for_estimate_of
 
 
 class TelemetryAlarms(unittest.TestCase):
@@ -46,29 +38,10 @@ class TelemetryAlarms(unittest.TestCase):
         estimates, events = [], []
         rospy.Subscriber("/hot/identifier/estimate", ParameterEstimate, estimates.append)
         rospy.Subscriber("/hot/identifier/events", ConditionEvent, events.append)
-        pub = rospy.Publisher("/hot_vesc/sensors/core", TestVescStateStamped, queue_size=10000)
-        deadline = time.time() + 30
-        while pub.get_num_connections() == 0 and time.time() < deadline:
-            time.sleep(0.1)
-        self.assertGreater(pub.get_num_connections(), 0, "the bridge never subscribed")
-        time.sleep(0.5)
-        with open(log) as f:
-            header = f.readline().strip().split(";")
-            rows = [dict(zip(header, (float(c) for c in line.strip().split(";")))) for line in f if line.strip()]
-        last = None
-        for row in rows:  # about 2.5 s of wall time: the node refits several times along the way
-            m = TestVescStateStamped()
-            last = rospy.Time.from_sec(row["ms_today"] * 1e-3)
-            m.header.stamp = last
-            m.state.avg_vd, m.state.avg_vq = row["d_axis_voltage"], row["q_axis_voltage"]
-            m.state.avg_id, m.state.avg_iq = row["d_axis_current"], row["q_axis_current"]
-            m.state.speed = row["erpm"]
-            m.state.voltage_input = row["input_voltage"]
-            pub.publish(m)
-            time.sleep(0.005)
-        deadline = time.time() + 60
-        while time.time() < deadline and not (estimates and abs((estimates[-1].header.stamp - last).to_sec()) < 1e-6):
-            time.sleep(0.2)
+        # About 2.5 s of wall time: the node refits several times along the way.
+        last = publish_vesc_log("/hot_vesc/sensors/core", log, pause=0.005)
+        self.assertIsNotNone(last, "the bridge never subscribed")
+        wait_for_estimate_of(estimates, last)
         self.assertTrue(estimates, "no estimate from the identifier")
         final = estimates[-1]
         self.assertLess(abs((final.header.stamp - last).to_sec()), 1e-6, "the last estimate is not of the last sample")

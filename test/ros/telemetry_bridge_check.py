@@ -6,26 +6,18 @@ import math
 import os
 import subprocess
 import tempfile
-import time
 import unittest
 
-import roslib.packages
 import rospkg
 import rospy
 import rostest
 
-from pmsm_param_id.msg import ParameterEstimate, TestVescStateStamped
+from pmsm_param_id.msg import ParameterEstimate
+from vesc_stream import publish_vesc_log, tool, wait_for_estimate_of
 
 PARAMETERS = ("R_s", "L_d", "L_q", "psi_f")
 STATUS = {0: "no_data", 1: "identified", 2: "not_excited", 3: "poor_fit", 4: "at_bound", 5: "implausible",
           6: "not_converged"}
-
-
-def tool():
-    found = roslib.packages.find_node("pmsm_param_id", "pmsm_tool")
-    if not found:
-        raise RuntimeError("pmsm_tool not built")
-    return found[0]
 
 
 class TelemetryBridge(unittest.TestCase):
@@ -59,31 +51,10 @@ class TelemetryBridge(unittest.TestCase):
 
         estimates = []
         rospy.Subscriber("/telemetry/identifier/estimate", ParameterEstimate, estimates.append)
-        pub = rospy.Publisher("/vesc/sensors/core", TestVescStateStamped, queue_size=10000)
-        deadline = time.time() + 30
-        while pub.get_num_connections() == 0 and time.time() < deadline:
-            time.sleep(0.1)
-        self.assertGreater(pub.get_num_connections(), 0, "the bridge never subscribed")
-        time.sleep(0.5)
-        with open(log) as f:
-            header = f.readline().strip().split(";")
-            rows = [dict(zip(header, (float(c) for c in line.strip().split(";")))) for line in f if line.strip()]
-        last = None
-        for k, row in enumerate(rows):
-            m = TestVescStateStamped()
-            last = rospy.Time.from_sec(row["ms_today"] * 1e-3)
-            m.header.stamp = last
-            m.state.avg_vd, m.state.avg_vq = row["d_axis_voltage"], row["q_axis_voltage"]
-            m.state.avg_id, m.state.avg_iq = row["d_axis_current"], row["q_axis_current"]
-            m.state.speed = row["erpm"]
-            m.state.voltage_input = row["input_voltage"]
-            pub.publish(m)
-            if k % 50 == 49:
-                time.sleep(0.01)
+        last = publish_vesc_log("/vesc/sensors/core", log, pause=0.01, pause_every=50)
+        self.assertIsNotNone(last, "the bridge never subscribed")
         # The identifier publishes the fit of every sample once the stream pauses.
-        deadline = time.time() + 60
-        while time.time() < deadline and not (estimates and abs((estimates[-1].header.stamp - last).to_sec()) < 1e-6):
-            time.sleep(0.2)
+        wait_for_estimate_of(estimates, last)
         self.assertTrue(estimates, "no estimate from the identifier")
         final = estimates[-1]
         self.assertLess(abs((final.header.stamp - last).to_sec()), 1e-6, "the last estimate is not of the last sample")
