@@ -61,6 +61,40 @@ Row rowOf(const Sample& s, double width) {
   return r;
 }
 
+// The covariance of a weighted least-squares fit from its information matrix A (fixed or dynamic
+// size): equilibrated by the diagonal, a column without information (all zero, or not free) left
+// out; directions below 1e-12 of the largest eigenvalue are numerically null, and a parameter that
+// loads on one is not determined at all (its standard deviation infinite), the others from the
+// rest. False where the eigen-solver fails or A holds nothing.
+template <class M>
+bool informationInverse(const M& A, const std::vector<bool>& free, M& covariance, std::vector<bool>& determined) {
+  using V = Eigen::Matrix<double, M::RowsAtCompileTime, 1>;
+  const Eigen::Index n = A.rows();
+  V scale = V::Zero(n);
+  for (Eigen::Index j = 0; j < n; ++j)
+    if (free[static_cast<std::size_t>(j)] && A(j, j) > 0 && std::isfinite(A(j, j))) scale(j) = 1.0 / std::sqrt(A(j, j));
+  const M scaled = scale.asDiagonal() * A * scale.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<M> eig(scaled);
+  if (eig.info() != Eigen::Success) return false;
+  const V values = eig.eigenvalues();
+  const double largest = values.maxCoeff();
+  if (!(largest > 0)) return false;
+  V inverse = V::Zero(n);
+  determined.assign(static_cast<std::size_t>(n), false);
+  for (Eigen::Index j = 0; j < n; ++j) determined[static_cast<std::size_t>(j)] = scale(j) > 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (values(i) > 1e-12 * largest) {
+      inverse(i) = 1.0 / values(i);
+      continue;
+    }
+    for (Eigen::Index j = 0; j < n; ++j)
+      if (scale(j) > 0 && std::abs(eig.eigenvectors()(j, i)) > 1e-3) determined[static_cast<std::size_t>(j)] = false;
+  }
+  const M pinv = eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
+  covariance = scale.asDiagonal() * pinv * scale.asDiagonal();
+  return true;
+}
+
 // Weighted least squares over the rows with `free` columns (the others zero); `pairs`: consecutive
 // rows of one stretch, for the noise from residual differences.
 LinearFit solve(const std::vector<Row>& rows, const std::vector<std::size_t>& pairs, const std::array<bool, kColumns>& free,
@@ -72,33 +106,10 @@ LinearFit solve(const std::vector<Row>& rows, const std::vector<std::size_t>& pa
     A.noalias() += weight_d * r.d * r.d.transpose() + weight_q * r.q * r.q.transpose();
     b.noalias() += weight_d * r.d * r.u_d + weight_q * r.q * r.u_q;
   }
-  // Equilibrated by the diagonal; a column without information (all zero, or held) is left out.
-  Vector scale = Vector::Zero();
-  for (int j = 0; j < kColumns; ++j)
-    if (free[static_cast<std::size_t>(j)] && A(j, j) > 0 && std::isfinite(A(j, j))) scale(j) = 1.0 / std::sqrt(A(j, j));
-  const Matrix scaled = scale.asDiagonal() * A * scale.asDiagonal();
-  const Eigen::SelfAdjointEigenSolver<Matrix> eig(scaled);
-  if (eig.info() != Eigen::Success) return out;
-  const Vector values = eig.eigenvalues();
-  const double largest = values.maxCoeff();
-  if (!(largest > 0)) return out;
-  // Directions below 1e-12 of the largest are numerically null: a parameter that loads on one is
-  // not determined at all (its standard deviation infinite), the others from the rest.
-  Vector inverse = Vector::Zero();
-  std::array<bool, kColumns> determined{};
-  for (int j = 0; j < kColumns; ++j) determined[static_cast<std::size_t>(j)] = scale(j) > 0;
-  for (int i = 0; i < kColumns; ++i) {
-    if (values(i) > 1e-12 * largest) {
-      inverse(i) = 1.0 / values(i);
-      continue;
-    }
-    for (int j = 0; j < kColumns; ++j)
-      if (scale(j) > 0 && std::abs(eig.eigenvectors()(j, i)) > 1e-3) determined[static_cast<std::size_t>(j)] = false;
-  }
-  const Matrix pinv = eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
-  out.covariance = scale.asDiagonal() * pinv * scale.asDiagonal();
+  std::vector<bool> determined;
+  if (!informationInverse(A, std::vector<bool>(free.begin(), free.end()), out.covariance, determined)) return out;
   out.beta = out.covariance * b;
-  out.determined = determined;
+  for (int j = 0; j < kColumns; ++j) out.determined[static_cast<std::size_t>(j)] = determined[static_cast<std::size_t>(j)];
   std::vector<double> r_d(rows.size()), r_q(rows.size());
   for (std::size_t k = 0; k < rows.size(); ++k) {
     r_d[k] = rows[k].u_d - rows[k].d.dot(out.beta);
@@ -277,30 +288,7 @@ TrajectoryFit fitTrajectory(const std::vector<Sample>& steady, const std::vector
     d.accumulate(yd[k], weight_d, A, b);
     q.accumulate(yq[k], weight_q, A, b);
   }
-  // Equilibrated by the diagonal; numerically null directions (below 1e-12 of the largest) leave
-  // the parameters that load on them undetermined, as the constant fit's solve().
-  Eigen::VectorXd scale = Eigen::VectorXd::Zero(n);
-  for (int j = 0; j < n; ++j)
-    if (A(j, j) > 0 && std::isfinite(A(j, j))) scale(j) = 1.0 / std::sqrt(A(j, j));
-  const Eigen::MatrixXd scaled = scale.asDiagonal() * A * scale.asDiagonal();
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(scaled);
-  if (eig.info() != Eigen::Success) return out;
-  const Eigen::VectorXd values = eig.eigenvalues();
-  const double largest = values.maxCoeff();
-  if (!(largest > 0)) return out;
-  Eigen::VectorXd inverse = Eigen::VectorXd::Zero(n);
-  out.determined.assign(static_cast<std::size_t>(n), false);
-  for (int j = 0; j < n; ++j) out.determined[static_cast<std::size_t>(j)] = scale(j) > 0;
-  for (int i = 0; i < n; ++i) {
-    if (values(i) > 1e-12 * largest) {
-      inverse(i) = 1.0 / values(i);
-      continue;
-    }
-    for (int j = 0; j < n; ++j)
-      if (scale(j) > 0 && std::abs(eig.eigenvectors()(j, i)) > 1e-3) out.determined[static_cast<std::size_t>(j)] = false;
-  }
-  out.covariance = scale.asDiagonal() * (eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose()) *
-                   scale.asDiagonal();
+  if (!informationInverse(A, std::vector<bool>(static_cast<std::size_t>(n), true), out.covariance, out.determined)) return out;
   out.beta = out.covariance * b;
   if (!out.beta.allFinite()) return out;
   for (std::size_t k = 0; k < steady.size(); ++k) {
@@ -311,7 +299,7 @@ TrajectoryFit fitTrajectory(const std::vector<Sample>& steady, const std::vector
   out.chi2 = weight_d * out.mean_square_d + weight_q * out.mean_square_q;
   out.mean_square_d /= static_cast<double>(steady.size());
   out.mean_square_q /= static_cast<double>(steady.size());
-  for (int j = 0; j < n; ++j) out.columns += scale(j) > 0;
+  for (int j = 0; j < n; ++j) out.columns += A(j, j) > 0 && std::isfinite(A(j, j));
   out.ok = true;
   return out;
 }
