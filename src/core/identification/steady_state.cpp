@@ -178,6 +178,11 @@ Vector stdWithHeld(const std::vector<Row>& rows, const std::vector<std::size_t>&
   return sd;
 }
 
+// Where a fit determines the drive's constants (otherwise they are held at zero for the values
+// reported): V positive to 50 %, the timing k to 0.1 rad of turn at the RMS speed.
+bool inverterDetermined(double V, double V_std) { return V > 0 && V_std < 0.5 * V; }
+bool timingDetermined(double k_std, double omega_ms) { return k_std * std::sqrt(omega_ms) < 0.1; }
+
 // ---- The thermal trajectory (doc/algorithm.md section 13) ----------------------------------------
 // Between load and speed changes R_s and psi_f enter the averaged q equation only as
 // R_s i_q + omega_e psi_f, and heating moves both; at a change the two operating points split them.
@@ -328,7 +333,7 @@ struct TrajectoryEstimate {
 // block the temperatures there into out.estimate and the references it determines at the first
 // sample into out.thermal_references.
 void thermalTrajectory(const std::vector<Sample>& steady, const std::vector<double>& change_times, double width,
-                       std::array<bool, kColumns> free, double var_d, double var_q, double floor2,
+                       std::array<bool, kColumns> free, double var_d, double var_q, double floor2, double omega_ms,
                        const IdentifierConfig& config, const LearntReferences* given, SteadyStateFit& out,
                        TrajectoryEstimate& now) {
   const ThermalSettings& th = config.thermal;
@@ -389,11 +394,9 @@ void thermalTrajectory(const std::vector<Sample>& steady, const std::vector<doub
       return f.ok && f.determined[static_cast<std::size_t>(j)] ? std::sqrt(std::max(0.0, f.covariance(j, j)))
                                                                : std::numeric_limits<double>::infinity();
     };
-    double omega_ms = 0.0;
-    for (const Sample& s : steady) omega_ms += s.omega_e * s.omega_e / static_cast<double>(steady.size());
     std::array<bool, kColumns> held = free;
-    if (free[kV] && !(f.ok && f.beta(cV) > 0 && sd(cV) < 0.5 * f.beta(cV))) held[kV] = false;
-    if (free[kTiming] && !(sd(cK) * std::sqrt(omega_ms) < 0.1)) held[kTiming] = false;
+    if (free[kV] && !(f.ok && inverterDetermined(f.beta(cV), sd(cV)))) held[kV] = false;
+    if (free[kTiming] && !timingDetermined(sd(cK), omega_ms)) held[kTiming] = false;
     if (held != free) {
       free = held;
       f = fitTrajectory(steady, r_knots, p_knots, width, free, 0.0, 1.0 / wd, 1.0 / wq);
@@ -714,11 +717,11 @@ SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const Identifi
   for (const Sample& s : steady) omega_ms += s.omega_e * s.omega_e / m;
   std::array<bool, kColumns> reported_free = all;
   LinearFit reported = f;
-  if (!(reported.beta(kV) > 0 && stdOf(reported, kV) < 0.5 * reported.beta(kV))) {
+  if (!inverterDetermined(reported.beta(kV), stdOf(reported, kV))) {
     reported_free[kV] = false;
     reported = weightedFit(rows, pairs, reported_free, floor2);
   }
-  if (reported.ok && !(stdOf(reported, kTiming) * std::sqrt(omega_ms) < 0.1)) {
+  if (reported.ok && !timingDetermined(stdOf(reported, kTiming), omega_ms)) {
     reported_free[kTiming] = false;
     reported = weightedFit(rows, pairs, reported_free, floor2);
   }
@@ -797,7 +800,7 @@ SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const Identifi
       out.thermal_note = "the log's time goes back: the thermal trajectory needs one stretch of time";
     } else {
       thermalTrajectory(steady, changes, width, all, std::max(f.noise_d, floor2), std::max(f.noise_q, floor2),
-                        floor2, config, references, out, trajectory);
+                        floor2, omega_ms, config, references, out, trajectory);
     }
   }
   if (!fit.consistent && trajectory.consistent) {
