@@ -318,6 +318,30 @@ double trajectoryAt(const std::vector<double>& knots, int offset, const Eigen::V
   return h.w0 * beta(offset + h.j0) + (h.j1 != h.j0 ? h.w1 * beta(offset + h.j1) : 0.0);
 }
 
+// The load and speed changes of a log: the steps between neighbours (step[k]: from k - 1 to k),
+// those within kThermalStretch samples of each other one change, at its middle [s].
+std::vector<double> changeTimes(const std::vector<Sample>& samples, const std::vector<bool>& step) {
+  std::vector<double> changes;
+  std::size_t cluster_end = 0;
+  double cluster_start_t = 0.0, cluster_end_t = 0.0;
+  bool open = false;
+  for (std::size_t k = 1; k < samples.size(); ++k) {
+    if (!step[k]) continue;
+    const double t = 0.5 * (samples[k - 1].t + samples[k].t);
+    if (open && k <= cluster_end + kThermalStretch) {
+      cluster_end = k;
+      cluster_end_t = t;
+      continue;
+    }
+    if (open) changes.push_back(0.5 * (cluster_start_t + cluster_end_t));
+    open = true;
+    cluster_end = k;
+    cluster_start_t = cluster_end_t = t;
+  }
+  if (open) changes.push_back(0.5 * (cluster_start_t + cluster_end_t));
+  return changes;
+}
+
 // The thermal trajectory's parameters at the last steady sample (R_s and psi_f there, the
 // inductances and drive constants of the log), as the constant fit's FitCheck would state them.
 struct TrajectoryEstimate {
@@ -774,26 +798,7 @@ SteadyStateFit fitSteadyState(const std::vector<Sample>& samples, const Identifi
   // it fits and the constant fit does not, the values at the log's end are its.
   TrajectoryEstimate trajectory;
   if (config.thermal.enabled || !fit.consistent) {
-    // The load and speed changes: the steps between neighbours, those within kThermalStretch
-    // samples of each other one change, at its middle.
-    std::vector<double> changes;
-    std::size_t cluster_end = 0;
-    double cluster_start_t = 0.0, cluster_end_t = 0.0;
-    bool open = false;
-    for (std::size_t k = 1; k < n; ++k) {
-      if (!step[k]) continue;
-      const double t = 0.5 * (finite[k - 1].t + finite[k].t);
-      if (open && k <= cluster_end + kThermalStretch) {
-        cluster_end = k;
-        cluster_end_t = t;
-        continue;
-      }
-      if (open) changes.push_back(0.5 * (cluster_start_t + cluster_end_t));
-      open = true;
-      cluster_end = k;
-      cluster_start_t = cluster_end_t = t;
-    }
-    if (open) changes.push_back(0.5 * (cluster_start_t + cluster_end_t));
+    const std::vector<double> changes = changeTimes(finite, step);
     bool ordered = true;
     for (std::size_t k = 1; k < steady.size(); ++k) ordered = ordered && steady[k].t > steady[k - 1].t;
     if (!ordered) {
