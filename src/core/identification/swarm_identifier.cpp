@@ -93,7 +93,7 @@ void SwarmIdentifier::iterate(const F& fitness) {
     // At a new cycle whose best sits on a face of the box: does the box still hold the data's
     // optimum? (The base class also checks every ten cycles' worth of samples.)
     if (swarm_->iterationInCycle() == 0) {
-      auto edge = swarm_->bestAtBound();
+      const auto edge = swarm_->bestAtBound();
       if (std::find(edge.begin(), edge.end(), true) == edge.end()) continue;
       if (refreshSearchBox()) continue;  // the box followed the data
       // The box holds the data's optimum well inside, and a consistent fit determines it, yet the
