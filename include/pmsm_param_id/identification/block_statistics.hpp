@@ -51,6 +51,11 @@ struct WindowSettings {
   bool stationary_hold = false;            ///< the inverter holds the voltage in the stator frame
   double inverter_zero_crossing_current = 0.0;  ///< the inverter error passes zero as tanh(i / this) [A]; 0 = sign
   bool inverter_wide_shape = false;  ///< keep the twice-the-width shape column (the inverter model is on)
+  /// The narrow shape is the switching edges' (inverter_edges.hpp): each leg's dead time lost or
+  /// gained by the sign of its current at the edge, the ripple there set by the acting vector, the
+  /// inductances and V of the data's last exact fit (setEdgeModel) and the logged bus voltage (needs
+  /// the logged angle; until the model is set, tanh of the current as without it).
+  bool inverter_edge_shape = false;
   int voltage_delay_samples = 0;           ///< 0: u(t_k) acts on [t_k, t_k+1); 1: on [t_k+1, t_k+2)
   /// The inverter error's shape takes its phase currents from a current observer (the data's exact
   /// fit driven by the logged voltages) corrected towards the measured currents by this fraction
@@ -267,6 +272,15 @@ class BlockStatistics {
     hold_L_d_ = L_d;
     hold_L_q_ = L_q;
   }
+  /// The switching edges' model (WindowSettings::inverter_edge_shape): the inductances [H] and the
+  /// inverter voltage V [V] whose V T_s is the dead time's volt-seconds per edge; set from the data's
+  /// exact fit (0: not yet, the tanh shape stands in).
+  void setEdgeModel(double L_d, double L_q, double V) {
+    edge_L_d_ = L_d;
+    edge_L_q_ = L_q;
+    edge_V_ = V;
+  }
+  bool edgeModelSet() const { return settings_.inverter_edge_shape && edge_L_d_ > 0 && edge_L_q_ > 0 && edge_V_ > 0; }
   /// Parameters of the inverter shape's current observer (WindowSettings::inverter_shape_observer_gain),
   /// set from the data's exact fit; the observer also takes the inverter voltage set above.
   void setShapeObserverModel(const ParameterVector& p) { observer_model_ = p; }
@@ -351,6 +365,11 @@ class BlockStatistics {
   /// `at_sample`: the phasor of the sample's angle (the previous one's is in `previous`).
   ObservedPeriod observePeriod(const Cumulative& previous, const Sample& s, double dt, double angle_increment,
                                Phasor at_sample);
+  /// The switching edges' shape of the period after `previous` (edgeModelSet()): each leg's mean
+  /// error in units of V, from its phase currents at the period's two sampling instants; `mid`: the
+  /// rotor angle's phasor at mid-period.
+  std::array<double, 3> edgeShape(const Cumulative& previous, const std::array<double, 3>& i_start,
+                                  const std::array<double, 3>& i_end, double dt, Phasor mid) const;
   void rescale();
   /// The projection is computed when a fit first reads it after new data (RLS, the EKF and the
   /// exact fit read it every few hundred samples, the swarm's fitness every sample).
@@ -422,6 +441,7 @@ class BlockStatistics {
   mutable bool angle_sums_stale_ = true;
   double bus_reference_ = std::numeric_limits<double>::quiet_NaN();
   double hold_L_d_ = 0.0, hold_L_q_ = 0.0;
+  double edge_L_d_ = 0.0, edge_L_q_ = 0.0, edge_V_ = 0.0;  // setEdgeModel()
   ParameterVector observer_model_{};          // R_s, L_d, L_q, psi_f of the shape's observer (0: none yet)
   double observer_i_d_ = 0.0, observer_i_q_ = 0.0;  // its currents at the last sample [A]
   double cross_L_dq_ = 0.0, cross_L_qq_ = 0.0;

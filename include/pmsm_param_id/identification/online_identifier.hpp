@@ -176,9 +176,11 @@ class OnlineIdentifier {
   /// Nothing about the drive declared: switches to the real drive's model where the data show one.
   void watchDriveModel();
   /// The inverter error's zero-crossing width that fits the recent samples best (w: the new
-  /// drive model; fit: the present window's check, for its start values) [A]. `chosen`, where
-  /// given, receives the recent samples' statistics with that width (empty where none fitted).
-  double chooseZeroCrossingCurrent(const WindowSettings& w, const FitCheck& fit,
+  /// drive model; fit: the present window's check, for its start values; inverter_voltage: the
+  /// drive-effects fit's V [V], 0 = none) [A]; the switching edges' shape is tried as well where
+  /// the angle is logged and V given. `chosen`, where given, receives the recent samples'
+  /// statistics of the chosen shape (empty where none fitted).
+  double chooseZeroCrossingCurrent(const WindowSettings& w, const FitCheck& fit, double inverter_voltage,
                                    std::optional<BlockStatistics>* chosen = nullptr) const;
   void setBox(const ParameterVector& centre);
 

@@ -72,6 +72,11 @@ constexpr double kWellDeterminedInverter = 0.005;
 /// underestimates it (measured: 1-2 % of V between operating points of the switching-level
 /// industrial drive) [-].
 constexpr double kInverterModelFloor = 0.01;
+/// The same for the switching edges' model (inverter_edges.hpp), which follows the ripple's share
+/// itself: with exact currents its V varied by +-0.14-0.26 % between the operating points of the
+/// switching-level industrial drive and +-0.50 % on wc1_applied_log (the smooth shape's by
+/// +-0.54-0.98 % and +-0.73 %); the largest of those [-].
+constexpr double kInverterEdgeModelFloor = 0.005;
 
 /// Fits the slow window. `fast` is the fitness window's check of the same statistics (its drive
 /// terms, noise level and optimum as the start); `constants` is updated where this window

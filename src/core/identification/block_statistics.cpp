@@ -1,4 +1,5 @@
 #include "pmsm_param_id/identification/block_statistics.hpp"
+#include "pmsm_param_id/identification/inverter_edges.hpp"
 
 #include "pmsm_param_id/model/frames.hpp"
 
@@ -216,6 +217,7 @@ void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulativ
       mean[k] = f * sa + (1.0 - f) * sb;
     }
   }
+  if (edgeModelSet()) mean = edgeShape(p, a, b, dt, mid);
   // Into the rotor frame at mid-period (`mid`: the phasor of the rotor angle there).
   const Vec2 v = rotate(clarke(mean[0], mean[1], mean[2]), conjugate(mid));
   int_d = dt * v.x;
@@ -224,6 +226,24 @@ void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulativ
     const Vec2 vw = rotate(clarke(mean_wide[0], mean_wide[1], mean_wide[2]), conjugate(mid));
     *wide = {dt * vw.x, dt * vw.y};
   }
+}
+
+std::array<double, 3> BlockStatistics::edgeShape(const Cumulative& p, const std::array<double, 3>& i_start,
+                                                 const std::array<double, 3>& i_end, double dt, Phasor mid) const {
+  // The acting vector in the stator frame: turned by the drive's voltage angle where the fit
+  // estimates one, held in the stator frame from the period's start (stationary hold) or at mid-period.
+  Vec2 acting{p.applied_d, p.applied_q};
+  if (voltage_angle_ != 0.0) acting = rotate(acting, voltage_angle_ * p.omega_e * nominal_period_);
+  InverterEdgePeriod e;
+  e.voltage = rotate(acting, settings_.stationary_hold ? Phasor{p.cos_theta, p.sin_theta} : mid);
+  e.period = dt;
+  e.dead_volt_seconds = edge_V_ * dt;
+  e.bus_voltage = busVoltageLogged() ? bus_reference_ * (1.0 + p.bus_ratio) : std::numeric_limits<double>::quiet_NaN();
+  e.L_d = edge_L_d_;
+  e.L_q = edge_L_q_;
+  e.rotor = mid;
+  e.width = settings_.inverter_zero_crossing_current;
+  return inverterEdgeShape(e, i_start, i_end);
 }
 
 BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative& p, const Sample& s, double dt,
@@ -365,6 +385,13 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
     cos0 = c1;
     sin0 = s1;
     e0 = e1;
+  }
+  if (edgeModelSet()) {  // the narrow shape from the path's ends, edge by edge
+    const Phasor start{p.cos_theta, p.sin_theta}, mid = advance(start, p.theta_e, 0.5 * angle_increment);
+    const std::array<double, 3> m = edgeShape(p, phaseFromDq(d_start, q_start, start), phaseFromDq(d0, q0, Phasor{cos0, sin0}), dt, mid);
+    const Vec2 v = rotate(clarke(m[0], m[1], m[2]), conjugate(mid));
+    out.narrow_d = dt * v.x;
+    out.narrow_q = dt * v.y;
   }
   out.missed_d = path_d - 0.5 * dt * (d_start + d0);
   out.missed_q = path_q - 0.5 * dt * (q_start + q0);

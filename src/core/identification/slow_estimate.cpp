@@ -122,7 +122,8 @@ SlowFit slowFit(const BlockStatistics& stats, const AssessmentSettings& a, const
   // The inverter model's own error: V moved by its systematic spread, everything else refitted.
   if (inverter && std::isfinite(f.beta(4)) && f.beta(4) > 0) {
     const double range = constants.V_max >= constants.V_min ? 0.5 * (constants.V_max - constants.V_min) : 0.0;
-    out.inverter_model_spread = std::max(range, kInverterModelFloor * f.beta(4));
+    const double floor = stats.edgeModelSet() ? kInverterEdgeModelFloor : kInverterModelFloor;
+    out.inverter_model_spread = std::max(range, floor * f.beta(4));
     std::vector<bool> hold_v = hold;
     for (int j = 4; j < shape_end; ++j) hold_v[static_cast<std::size_t>(j)] = true;
     Eigen::VectorXd moved = f.beta;

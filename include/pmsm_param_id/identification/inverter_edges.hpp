@@ -1,0 +1,42 @@
+// The inverter's error voltage edge by edge: a centre-aligned PWM leg loses or gains its dead time at
+// each of its two commutations by the sign of the phase current *at that edge*, and the current
+// there is the sampled one plus the switching ripple, which the period's voltage vector and the
+// inductances set (doc/algorithm.md section 8, "switching edges").
+//
+// With the carrier's valley at the sampling instants (t = 0 and T_s) and the min-max zero sequence,
+// leg k rises at tau_r = T_s/2 (1/2 - (v_k + v_0) / V_dc) and falls at T_s - tau_r. Between the
+// valley and its rise the legs with a larger voltage are already high, so the ripple of the
+// stator-frame current there is L^-1 [ sum_j max(0, (T_s/2)(v_j - v_k) - V_dc t_d loss_j) e_j
+// - tau_r v_mean ]: the voltage differences, not V_dc, set it; V_dc enters only through tau_r's
+// second-order term and through the current's slope within the dead time itself. The same from the
+// period's end backwards gives the current at the falling edge.
+#pragma once
+#include <array>
+
+#include "pmsm_param_id/model/frames.hpp"
+
+namespace pmsm_param_id {
+
+struct InverterEdgePeriod {
+  Vec2 voltage;                   ///< the commanded vector acting over the period, stator frame [V]
+  double period = 0.0;            ///< T_s [s]
+  double dead_volt_seconds = 0.0; ///< V_dc t_dead = V T_s, what one edge loses or gains [V s]
+  double bus_voltage = 0.0;       ///< V_dc [V]; not finite or <= 0: unknown (then the second-order
+                                  ///< term of the edge times and the current's slope within the dead time are dropped)
+  double L_d = 0.0, L_q = 0.0;    ///< [H]: the ripple's inductances
+  Phasor rotor;                   ///< e^{j theta_e} within the period (the salient inductance's angle)
+  /// [A]: how well the edge current is known. With the bus voltage, each edge's share is the mean
+  /// of its ramp (the current's slope within the dead time) over i + N(0, width^2); without it, the
+  /// sign of the edge current as tanh(i / width). 0: exact.
+  double width = 0.0;
+};
+
+/// Each leg's mean error over the period in units of the dead time's volt-seconds per period
+/// (V T_s / T_s = V): the share of its rising edge's dead time spent low minus the share of its
+/// falling edge's spent high, in [-1, 1]; the pole voltage loses V times it. A current of one sign
+/// all period gives its sign, as the average model's sign(i_k). i_start, i_end: the phase currents
+/// at the period's sampling instants [A]. A leg whose duty saturates (known bus) gives 0.
+std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& period, const std::array<double, 3>& i_start,
+                                        const std::array<double, 3>& i_end);
+
+}  // namespace pmsm_param_id

@@ -1,0 +1,176 @@
+#include "pmsm_param_id/identification/inverter_edges.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace pmsm_param_id {
+
+namespace {
+/// E[max(0, X - a)] for X ~ N(mu, sigma^2) (sigma > 0).
+double hinge(double mu, double sigma, double a) {
+  const double z = (mu - a) / sigma;
+  return (mu - a) * 0.5 * std::erfc(-z / std::sqrt(2.0)) + sigma * std::exp(-0.5 * z * z) / std::sqrt(2.0 * M_PI);
+}
+
+/// The share of a dead time [0, t_d] that the leg spends low, from the phase current i at its start
+/// and its slopes with the leg low and with it high [A/s]: low while the current is positive (the
+/// lower diode), high while negative; a current driven to zero by both stays there, the leg
+/// chattering at the share that holds it (s_hi / (s_hi - s_lo)). As a function of i this is a ramp
+/// from 0 to 1 through at most three knots; with sigma > 0 its mean over i + N(0, sigma^2) (the
+/// edge current is known to about the zero-crossing width the data chose).
+double lowShare(double i, double s_lo, double s_hi, double t_d, double sigma) {
+  double x[3], y[3];
+  int n = 0;
+  if (s_hi > 0 && s_lo < 0) {  // pinned at zero between the two ramps
+    x[0] = -s_hi * t_d, y[0] = 0.0;
+    x[1] = 0.0, y[1] = s_hi / (s_hi - s_lo);
+    x[2] = -s_lo * t_d, y[2] = 1.0;
+    n = 3;
+  } else if (s_lo < 0) {  // a positive current falls through zero and stays negative
+    x[0] = 0.0, y[0] = 0.0;
+    x[1] = -s_lo * t_d, y[1] = 1.0;
+    n = 2;
+  } else if (s_hi > 0) {  // a negative current rises through zero and stays positive
+    x[0] = -s_hi * t_d, y[0] = 0.0;
+    x[1] = 0.0, y[1] = 1.0;
+    n = 2;
+  } else {  // the sign at the edge holds
+    x[0] = 0.0, y[0] = 0.0;
+    n = 1;
+  }
+  if (!(sigma > 0)) {
+    if (n == 1) return i > x[0] ? 1.0 : 0.0;
+    if (i <= x[0]) return 0.0;
+    for (int j = 0; j + 1 < n; ++j)
+      if (i <= x[j + 1]) return y[j] + (y[j + 1] - y[j]) * (i - x[j]) / (x[j + 1] - x[j]);
+    return 1.0;
+  }
+  // Six sigma beyond the ramp the mean is its end (to 1e-9): most edges, with no erfc or exp.
+  if (i < x[0] - 6.0 * sigma) return 0.0;
+  if (i > x[n - 1] + 6.0 * sigma) return 1.0;
+  if (n == 1) return 0.5 * std::erfc(-(i - x[0]) / (sigma * std::sqrt(2.0)));
+  double share = 0.0;
+  for (int j = 0; j + 1 < n; ++j) {
+    const double width = x[j + 1] - x[j];
+    if (width > 0) share += (y[j + 1] - y[j]) / width * (hinge(i, sigma, x[j]) - hinge(i, sigma, x[j + 1]));
+    else share += (y[j + 1] - y[j]) * 0.5 * std::erfc(-(i - x[j]) / (sigma * std::sqrt(2.0)));
+  }
+  return share;
+}
+
+double smoothSign(double x, double width) {
+  if (width > 0) return std::tanh(x / width);
+  return x > 0 ? 1.0 : (x < 0 ? -1.0 : 0.0);
+}
+
+// The phases' rows of the inverse Clarke transform.
+constexpr double kRow[3][2] = {{1.0, 0.0}, {-0.5, 0.8660254037844386}, {-0.5, -0.8660254037844386}};
+}  // namespace
+
+std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& in, const std::array<double, 3>& i_start,
+                                        const std::array<double, 3>& i_end) {
+  const double T = in.period;
+  const std::array<double, 3> v = inverseClarke(in.voltage);
+  const double v0 = -0.5 * (std::max({v[0], v[1], v[2]}) + std::min({v[0], v[1], v[2]}));
+  const bool bus_known = std::isfinite(in.bus_voltage) && in.bus_voltage > 0;
+  const double kappa = bus_known ? 1.0 / in.bus_voltage : 0.0;
+  const double dead = std::max(0.0, in.dead_volt_seconds);
+  const double t_d = bus_known ? dead / in.bus_voltage : 0.0;
+  std::array<double, 3> rise{}, fund{};
+  std::array<bool, 3> switching{};
+  for (std::size_t k = 0; k < 3; ++k) {
+    const double duty = 0.5 + (v[k] + v0) * kappa;
+    switching[k] = duty > 0.0 && duty < 1.0;
+    rise[k] = 0.5 * T * (1.0 - duty);
+    fund[k] = (i_end[k] - i_start[k]) / T;
+  }
+  // L^-1 in the stator frame at the rotor angle: L = Sigma + Delta [[c2, s2], [s2, -c2]].
+  const double S = 0.5 * (in.L_d + in.L_q), D = 0.5 * (in.L_d - in.L_q);
+  const double c2 = in.rotor.c * in.rotor.c - in.rotor.s * in.rotor.s, s2 = 2.0 * in.rotor.s * in.rotor.c;
+  const double det = S * S - D * D;
+  std::array<double, 3> out{};
+  if (!(S > 0 && det > 0 && T > 0)) {  // no inductance: the sign of the period's mean current
+    for (std::size_t k = 0; k < 3; ++k) out[k] = smoothSign(0.5 * (i_start[k] + i_end[k]), in.width);
+    return out;
+  }
+  // The ripple of phase k for stator-frame volt-seconds lambda: its row of L^-1 lambda.
+  const auto ripple = [&](std::size_t k, Vec2 lambda) {
+    const double a = ((S - D * c2) * lambda.x - D * s2 * lambda.y) / det;
+    const double b = (-D * s2 * lambda.x + (S + D * c2) * lambda.y) / det;
+    return kRow[k][0] * a + kRow[k][1] * b;
+  };
+  // Leg k's slope within a dead time with the legs in `high` and k itself low or high [A/s]; the
+  // others' states are taken at the dead time's middle (at a low modulation the three legs switch
+  // within a dead time of each other).
+  const auto slopes = [&](std::size_t k, std::array<bool, 3> high, Vec2 mean, double& s_lo, double& s_hi) {
+    for (int state = 0; state < 2; ++state) {
+      high[k] = state == 1;
+      const Vec2 u = clarke(high[0] ? in.bus_voltage : 0.0, high[1] ? in.bus_voltage : 0.0, high[2] ? in.bus_voltage : 0.0);
+      const double s = fund[k] + ripple(k, {u.x - mean.x, u.y - mean.y});
+      (state == 0 ? s_lo : s_hi) = s;
+    }
+  };
+  // Each edge's share, first guessed from the mean current's sign, then three times from the edges
+  // (each pass with the mean vector of the last; on the switching-level 36 mH drive the residual
+  // error per period fell 0.353, 0.346, 0.341 V over two, three, four passes).
+  std::array<double, 3> loss{}, gain{};  // rising edge's share low, falling edge's share high
+  for (std::size_t k = 0; k < 3; ++k) {
+    const double mean = 0.5 * (i_start[k] + i_end[k]);
+    loss[k] = mean > 0 ? 1.0 : 0.0;
+    gain[k] = mean < 0 ? 1.0 : 0.0;
+  }
+  std::array<std::size_t, 3> order{0, 1, 2};  // by falling voltage: the order of the rises
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return v[a] > v[b]; });
+  for (int pass = 0; pass < 3; ++pass) {
+    // The period's actual mean vector (the ripple is measured from it).
+    std::array<double, 3> m{};
+    for (std::size_t k = 0; k < 3; ++k) m[k] = switching[k] ? loss[k] - gain[k] : 0.0;
+    const Vec2 e = clarke(m[0], m[1], m[2]);
+    const Vec2 mean{in.voltage.x - dead / T * e.x, in.voltage.y - dead / T * e.y};
+    for (std::size_t k : order) {  // rises, earliest first
+      if (!switching[k]) continue;
+      std::array<double, 3> P{};
+      for (std::size_t j = 0; j < 3; ++j)
+        if (j != k && switching[j]) P[j] = std::max(0.0, 0.5 * T * (v[j] - v[k]) - dead * loss[j]);
+        else if (j != k && v[j] + v0 > 0) P[j] = in.bus_voltage * rise[k];  // a leg held high
+      const Vec2 pc = clarke(P[0], P[1], P[2]);
+      const double tau = rise[k];
+      const double i = i_start[k] + fund[k] * tau + ripple(k, {pc.x - tau * mean.x, pc.y - tau * mean.y});
+      if (bus_known && t_d > 0) {
+        std::array<bool, 3> high{};
+        for (std::size_t j = 0; j < 3; ++j)
+          high[j] = switching[j] ? (0.5 * T * (v[j] - v[k]) + dead * (0.5 - loss[j]) > 0) : (v[j] + v0 > 0);
+        double s_lo, s_hi;
+        slopes(k, high, mean, s_lo, s_hi);
+        loss[k] = lowShare(i, s_lo, s_hi, t_d, in.width);
+      } else {
+        loss[k] = 0.5 * (1.0 + smoothSign(i, in.width));
+      }
+    }
+    for (std::size_t k : order) {  // falls, backwards from the period's end: latest first
+      if (!switching[k]) continue;
+      std::array<double, 3> P{};  // volt-seconds from the fall to the period's end (its own dead time's among them)
+      for (std::size_t j = 0; j < 3; ++j)
+        if (j == k) P[j] = dead * gain[k];
+        else if (switching[j]) P[j] = std::max(0.0, 0.5 * T * (v[j] - v[k]) + dead * gain[j]);
+        else if (j != k && v[j] + v0 > 0) P[j] = in.bus_voltage * rise[k];
+      const Vec2 pc = clarke(P[0], P[1], P[2]);
+      const double to_end = rise[k];  // T_s - tau_f
+      const double i = i_end[k] - fund[k] * to_end - ripple(k, {pc.x - to_end * mean.x, pc.y - to_end * mean.y});
+      if (bus_known && t_d > 0) {
+        std::array<bool, 3> high{};
+        for (std::size_t j = 0; j < 3; ++j)
+          high[j] = switching[j] ? (0.5 * T * (v[j] - v[k]) + dead * (gain[j] - 0.5) > 0) : (v[j] + v0 > 0);
+        double s_lo, s_hi;
+        slopes(k, high, mean, s_lo, s_hi);
+        gain[k] = 1.0 - lowShare(i, s_lo, s_hi, t_d, in.width);
+      } else {
+        gain[k] = 0.5 * (1.0 - smoothSign(i, in.width));
+      }
+    }
+  }
+  for (std::size_t k = 0; k < 3; ++k) out[k] = switching[k] ? loss[k] - gain[k] : 0.0;
+  return out;
+}
+
+}  // namespace pmsm_param_id
