@@ -242,6 +242,13 @@ constexpr std::size_t kDriveModelReplaySamples = 20000;
 /// Zero-crossing widths tried at a switch to the real drive's model: the currents' RMS down by
 /// halves.
 constexpr int kZeroCrossingCandidates = 8;
+/// Widths tried for the switching edges' shape: half the smooth shape's chosen width and one
+/// halving below it, the second only where the first fitted better than the smooth shape. (Each
+/// candidate replays the recent samples, about 1 us per sample: eight of them doubled FBDAPSO's
+/// cost on the 1.2 s industrial_pwm log, against a goal of 5x its cost on wc1_drive. On the
+/// real_drive_* logs the data took a half or a quarter of the smooth width, once an eighth, where
+/// L_d's chord term, 0.001 z^2, then kept it unidentified.)
+constexpr int kEdgeWidthCandidates = 2;
 /// A narrower candidate is taken where its slow window's residual is lower than the best wider
 /// one's by more than this many times the chance spread of a residual ratio over n blocks,
 /// sqrt(2 / n) (one width is as good as another until the data say otherwise).

@@ -244,8 +244,10 @@ double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, cons
   if (!(rms > 0) || !std::isfinite(rms)) return kAutomaticZeroCrossingCurrent;
   // Where no candidate gives a physical error (one operating point: V not determined), the middle
   // of the range.
-  // The switching edges' shape (inverter_edges.hpp) is tried after the smooth one with the same
-  // rule among its widths: it needs the logged angle and a V to size the dead time's ripple.
+  // The switching edges' shape (inverter_edges.hpp) is tried after the smooth one, with the same
+  // rule among its widths, from half the smooth shape's width down by halves (at most
+  // kEdgeWidthCandidates): the edges explain the ripple's part of the error's spread at zero, so
+  // their width is narrower. It needs the logged angle and a V to size the dead time's ripple.
   double best = rms * std::ldexp(1.0, -kZeroCrossingCandidates / 2), best_ratio = std::numeric_limits<double>::infinity();
   struct Best {
     double ratio = std::numeric_limits<double>::infinity(), width = 0.0;
@@ -255,11 +257,18 @@ double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, cons
   } smooth_best, edge_best;
   double relevance = 1.0;
   const bool edges = angle_logged_ && inverter_voltage > 0 && fit.available && fit.optimum[kLd] > 0 && fit.optimum[kLq] > 0;
-  for (int trial_index = 0; trial_index < (edges ? 2 : 1) * kZeroCrossingCandidates; ++trial_index) {
-    const int k = trial_index % kZeroCrossingCandidates;
+  for (int trial_index = 0; trial_index < kZeroCrossingCandidates + (edges ? kEdgeWidthCandidates : 0); ++trial_index) {
     WindowSettings candidate = w;
-    candidate.inverter_zero_crossing_current = rms * std::ldexp(1.0, -k);
     candidate.inverter_edge_shape = trial_index >= kZeroCrossingCandidates;
+    // From half the smooth shape's width down, and a narrower one only while the last one fitted
+    // better than the smooth shape (each trial replays the recent samples).
+    const int edge_index = trial_index - kZeroCrossingCandidates;
+    if (candidate.inverter_edge_shape &&
+        (!(smooth_best.width > 0) || (edge_index > 0 && !(edge_best.ratio < smooth_best.ratio))))
+      break;
+    candidate.inverter_zero_crossing_current = candidate.inverter_edge_shape
+                                                   ? smooth_best.width * std::ldexp(1.0, -(edge_index + 1))
+                                                   : rms * std::ldexp(1.0, -trial_index);
     BlockStatistics trial(candidate);
     trial.configure(period_.nominal());
     // The edges' ripple from the best smooth candidate's inductances and V where it has them (its
