@@ -365,11 +365,11 @@ class BlockStatistics {
   /// `at_sample`: the phasor of the sample's angle (the previous one's is in `previous`).
   ObservedPeriod observePeriod(const Cumulative& previous, const Sample& s, double dt, double angle_increment,
                                Phasor at_sample);
-  /// The switching edges' shape of the period after `previous` (edgeModelSet()): each leg's mean
-  /// error in units of V, from its phase currents at the period's two sampling instants; `mid`: the
-  /// rotor angle's phasor at mid-period.
-  std::array<double, 3> edgeShape(const Cumulative& previous, const std::array<double, 3>& i_start,
-                                  const std::array<double, 3>& i_end, double dt, Phasor mid) const;
+  /// The switching edges' shape integrated over the period after `previous` (edgeModelSet()), in
+  /// the rotor frame at mid-period [s]: each leg's mean error in units of V, from its phase currents
+  /// at the period's two sampling instants; `mid`: the rotor angle's phasor at mid-period.
+  Vec2 edgeShapeIntegral(const Cumulative& previous, const std::array<double, 3>& i_start,
+                         const std::array<double, 3>& i_end, double dt, Phasor mid) const;
   void rescale();
   /// The projection is computed when a fit first reads it after new data (RLS, the EKF and the
   /// exact fit read it every few hundred samples, the swarm's fitness every sample).

@@ -217,7 +217,6 @@ void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulativ
       mean[k] = f * sa + (1.0 - f) * sb;
     }
   }
-  if (edgeModelSet()) mean = edgeShape(p, a, b, dt, mid);
   // Into the rotor frame at mid-period (`mid`: the phasor of the rotor angle there).
   const Vec2 v = rotate(clarke(mean[0], mean[1], mean[2]), conjugate(mid));
   int_d = dt * v.x;
@@ -228,8 +227,8 @@ void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulativ
   }
 }
 
-std::array<double, 3> BlockStatistics::edgeShape(const Cumulative& p, const std::array<double, 3>& i_start,
-                                                 const std::array<double, 3>& i_end, double dt, Phasor mid) const {
+Vec2 BlockStatistics::edgeShapeIntegral(const Cumulative& p, const std::array<double, 3>& i_start,
+                                        const std::array<double, 3>& i_end, double dt, Phasor mid) const {
   // The acting vector in the stator frame: turned by the drive's voltage angle where the fit
   // estimates one, held in the stator frame from the period's start (stationary hold) or at mid-period.
   Vec2 acting{p.applied_d, p.applied_q};
@@ -243,7 +242,9 @@ std::array<double, 3> BlockStatistics::edgeShape(const Cumulative& p, const std:
   e.L_q = edge_L_q_;
   e.rotor = mid;
   e.width = settings_.inverter_zero_crossing_current;
-  return inverterEdgeShape(e, i_start, i_end);
+  const std::array<double, 3> m = inverterEdgeShape(e, i_start, i_end);
+  const Vec2 v = rotate(clarke(m[0], m[1], m[2]), conjugate(mid));  // into the rotor frame at mid-period
+  return {dt * v.x, dt * v.y};
 }
 
 BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative& p, const Sample& s, double dt,
@@ -388,10 +389,9 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
   }
   if (edgeModelSet()) {  // the narrow shape from the path's ends, edge by edge
     const Phasor start{p.cos_theta, p.sin_theta}, mid = advance(start, p.theta_e, 0.5 * angle_increment);
-    const std::array<double, 3> m = edgeShape(p, phaseFromDq(d_start, q_start, start), phaseFromDq(d0, q0, Phasor{cos0, sin0}), dt, mid);
-    const Vec2 v = rotate(clarke(m[0], m[1], m[2]), conjugate(mid));
-    out.narrow_d = dt * v.x;
-    out.narrow_q = dt * v.y;
+    const Vec2 v = edgeShapeIntegral(p, phaseFromDq(d_start, q_start, start), phaseFromDq(d0, q0, Phasor{cos0, sin0}), dt, mid);
+    out.narrow_d = v.x;
+    out.narrow_q = v.y;
   }
   out.missed_d = path_d - 0.5 * dt * (d_start + d0);
   out.missed_q = path_q - 0.5 * dt * (q_start + q0);
@@ -606,6 +606,11 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
       inv_q = observed.narrow_q;
     } else {
       inverterShapeIntegral(p, c, s, dt, width, mid_bend, mid, inv_d, inv_q, both ? &wide_integral : nullptr);
+      if (edgeModelSet() && std::isfinite(p.theta_e) && std::isfinite(s.theta_e)) {  // the narrow shape edge by edge
+        const Vec2 v = edgeShapeIntegral(p, p.phase, c.phase, dt, mid);
+        inv_d = v.x;
+        inv_q = v.y;
+      }
     }
     c.Inv_d = p.Inv_d + inv_d;
     c.Inv_q = p.Inv_q + inv_q;
