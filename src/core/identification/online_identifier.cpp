@@ -242,13 +242,10 @@ double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, cons
   for (const RecentSample& r : recent_) sum2 += r.sample.i_d * r.sample.i_d + r.sample.i_q * r.sample.i_q;
   const double rms = recent_.empty() ? 0.0 : std::sqrt(sum2 / static_cast<double>(recent_.size()));
   if (!(rms > 0) || !std::isfinite(rms)) return kAutomaticZeroCrossingCurrent;
-  // Where no candidate gives a physical error (one operating point: V not determined), the middle
-  // of the range.
   // The switching edges' shape (inverter_edges.hpp) is tried after the smooth one, with the same
   // rule among its widths, from half the smooth shape's width down by halves (at most
   // kEdgeWidthCandidates): the edges explain the ripple's part of the error's spread at zero, so
   // their width is narrower. It needs the logged angle and a V to size the dead time's ripple.
-  double best = rms * std::ldexp(1.0, -kZeroCrossingCandidates / 2), best_ratio = std::numeric_limits<double>::infinity();
   struct Best {
     double ratio = std::numeric_limits<double>::infinity(), width = 0.0;
     std::optional<BlockStatistics> trial;
@@ -310,11 +307,14 @@ double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, cons
   // consistent fits and 3 of 8 identified L_q.)
   const bool take_edges = edge_best.ratio < smooth_best.ratio;
   Best& b = take_edges ? edge_best : smooth_best;
-  best_ratio = b.ratio;
-  if (b.ratio < std::numeric_limits<double>::infinity()) best = b.width;
-  if (chosen) *chosen = std::move(b.trial);
-  if (chosen && !(best_ratio < std::numeric_limits<double>::infinity())) chosen->reset();  // the middle: replayed
-  return best;
+  const bool physical = b.ratio < std::numeric_limits<double>::infinity();
+  if (chosen) {
+    *chosen = std::move(b.trial);
+    if (!physical) chosen->reset();  // the middle: replayed
+  }
+  // Where no candidate gives a physical error (one operating point: V not determined), the middle
+  // of the range.
+  return physical ? b.width : rms * std::ldexp(1.0, -kZeroCrossingCandidates / 2);
 }
 
 LearntReferences OnlineIdentifier::learntReferences() const {
