@@ -203,28 +203,20 @@ class BlockStatistics {
     if (weight_ <= 0) return std::numeric_limits<double>::infinity();
     const double inv = 1.0 / (p[kLd] * p[kLq]);  // one division for both 1/L_d and 1/L_q
     const double inv_Ld = p[kLq] * inv, inv_Lq = p[kLd] * inv;
-    // With a known inverter voltage V the reference voltage overstates the applied one by V s.
-    const double V = inverter_voltage_;
-    const double wd[5] = {1.0, p[kRs] * inv_Ld, -p[kLq] * inv_Ld, -inv_Ld, V * inv_Ld};
-    const double wq[6] = {1.0, p[kRs] * inv_Lq, p[kLd] * inv_Lq, -inv_Lq, p[kPsiF] * inv_Lq, V * inv_Lq};
+    // The known drive terms (the inverter's error voltage with its shape's shares, the voltage
+    // angle) are folded into the sums' voltage entry (fitnessSums()): the same four and five
+    // entries as the paper's model, whatever the drive model (on a switching-level drive's log a
+    // real drive's fitness cost three times the paper's with the terms as entries of their own).
+    const double wd[4] = {1.0, p[kRs] * inv_Ld, -p[kLq] * inv_Ld, -inv_Ld};
+    const double wq[5] = {1.0, p[kRs] * inv_Lq, p[kLd] * inv_Lq, -inv_Lq, p[kPsiF] * inv_Lq};
     // Quadratic forms on the upper triangles (the lower ones are not maintained), with the trip
     // counts fixed at compile time so that the compiler unrolls them.
     // (The q form continues the d form's sum: the same order of additions as one loop over both.)
     const auto [Sd, Sq] = fitnessSums();
-    static_assert(kIntegralInverterD == 4 && kIntegralInverterWideD == 6 && kIntegralInverterBusD == 7 &&
-                      kIntegralInverterQ == 5 && kIntegralInverterWideQ == 7 && kIntegralInverterBusQ == 8,
+    static_assert(kDeltaId == 0 && kIntegralId == 1 && kIntegralOmegaIq == 2 && kIntegralUd == 3 && kDeltaIq == 0 &&
+                      kIntegralIq == 1 && kIntegralOmegaId == 2 && kIntegralUq == 3 && kIntegralOmega == 4,
                   "the fitness's weight arrays follow the block entries");
-    if (inverter_wide_share_ != 0.0 || inverter_bus_share_ != 0.0) {
-      // The zero-crossing shape as a mix of two widths, and the dead-time part following the logged
-      // bus (a zero share adds exact zeros: the same value as the shorter forms).
-      const InverterMix mix = inverterMix();
-      const double wd8[8] = {wd[0], wd[1], wd[2], wd[3], mix.narrow * inv_Ld, 0.0, mix.wide * inv_Ld, mix.bus * inv_Ld};
-      const double wq9[9] = {wq[0], wq[1], wq[2], wq[3], wq[4], mix.narrow * inv_Lq, 0.0, mix.wide * inv_Lq, mix.bus * inv_Lq};
-      return std::max(0.0, 2.0 * upperForm<9>(Sq, wq9, upperForm<8>(Sd, wd8, 0.0)) / fitnessWeight());
-    }
-    const double f = V != 0.0 ? upperForm<6>(Sq, wq, upperForm<5>(Sd, wd, 0.0))
-                              : upperForm<5>(Sq, wq, upperForm<4>(Sd, wd, 0.0));
-    return std::max(0.0, 2.0 * f / fitnessWeight());
+    return std::max(0.0, 2.0 * upperForm<5>(Sq, wq, upperForm<4>(Sd, wd, 0.0)) / fitnessWeight());
   }
   /// fitness() at n points in one call (the swarm evaluates every particle's move at once): the same
   /// values, each computed as fitness() computes it, without a call per point.
@@ -249,15 +241,17 @@ class BlockStatistics {
   /// twice the zero-crossing current [V], and the part that scales with the logged bus voltage (the
   /// dead time's, at the reference bus voltage) [V]; set from the data's exact fit.
   void setInverterVoltage(double v, double wide_share = 0.0, double bus_share = 0.0) {
+    const double wide = v != 0.0 ? wide_share : 0.0, bus = v != 0.0 ? bus_share : 0.0;
+    if (v != inverter_voltage_ || wide != inverter_wide_share_ || bus != inverter_bus_share_) folded_sums_stale_ = true;
     inverter_voltage_ = v;
-    inverter_wide_share_ = v != 0.0 ? wide_share : 0.0;
-    inverter_bus_share_ = v != 0.0 ? bus_share : 0.0;
+    inverter_wide_share_ = wide;
+    inverter_bus_share_ = bus;
   }
   double inverterVoltage() const { return inverter_voltage_; }
   /// The voltage angle coefficient a the fitness takes as known (acting vector turned by
   /// a omega_e T_s; 0: none) [-]; set from the data's exact fit (WindowSettings::estimate_voltage_angle).
   void setVoltageAngle(double a) {
-    if (a != voltage_angle_) angle_sums_stale_ = true;
+    if (a != voltage_angle_) folded_sums_stale_ = true;
     voltage_angle_ = a;
   }
   double voltageAngle() const { return voltage_angle_; }
@@ -379,8 +373,10 @@ class BlockStatistics {
   }
   /// The (upper-triangle) sums every fitness reads: projected off the sensor errors when they are
   /// fitted out.
-  /// With a known voltage angle a, the sums of the acting voltage's entries instead of the logged
-  /// ones (U_d - a A_d, U_q + a A_q): the fitness then reads the entries it reads without one.
+  /// With a known voltage angle a and a known inverter error (V's narrow, wide and bus parts), the
+  /// sums of the acting voltage's entries instead of the logged ones (U_d - a A_d - V_n Inv_d -
+  /// V_w Wide_d - V_b Bus_d, U_q + a A_q - ... in q): the fitness then reads the entries it reads
+  /// without them.
   std::pair<const ProductD&, const ProductQ&> fitnessSums() const {
     const ProductD* d = &S_d_;
     const ProductQ* q = &S_q_;
@@ -393,11 +389,11 @@ class BlockStatistics {
       d = &P_d_;
       q = &P_q_;
     }
-    if (voltage_angle_ == 0.0) return {*d, *q};
-    if (angle_sums_stale_) updateAngleSums(*d, *q);
-    return {angle_d_, angle_q_};
+    if (voltage_angle_ == 0.0 && inverter_voltage_ == 0.0) return {*d, *q};
+    if (folded_sums_stale_) updateFoldedSums(*d, *q);
+    return {folded_d_, folded_q_};
   }
-  void updateAngleSums(const ProductD& d, const ProductQ& q) const;
+  void updateFoldedSums(const ProductD& d, const ProductQ& q) const;
   /// The stored weight of the sums fitnessSums() returned (the projection's, when it is read).
   double fitnessWeight() const { return settings_.sensor_offsets ? projected_weight_ : stored_weight_; }
 
@@ -436,9 +432,9 @@ class BlockStatistics {
   std::uint64_t blocks_ = 0;
   double inverter_voltage_ = 0.0, inverter_wide_share_ = 0.0, inverter_bus_share_ = 0.0;
   double voltage_angle_ = 0.0;
-  mutable ProductD angle_d_ = ProductD::Zero();  // fitnessSums() with the voltage angle applied
-  mutable ProductQ angle_q_ = ProductQ::Zero();
-  mutable bool angle_sums_stale_ = true;
+  mutable ProductD folded_d_ = ProductD::Zero();  // fitnessSums() with the known drive terms folded in
+  mutable ProductQ folded_q_ = ProductQ::Zero();
+  mutable bool folded_sums_stale_ = true;
   double bus_reference_ = std::numeric_limits<double>::quiet_NaN();
   double hold_L_d_ = 0.0, hold_L_q_ = 0.0;
   double edge_L_d_ = 0.0, edge_L_q_ = 0.0, edge_V_ = 0.0;  // setEdgeModel()
