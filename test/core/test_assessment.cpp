@@ -1525,6 +1525,43 @@ TEST(VoltageAngle, TheSwarmsFitnessWithAKnownAngleIsTheModelsMeanSquareResidual)
   }
 }
 
+TEST(RealDriveIdentification, TheSwarmsFitnessWithTheDrivesTermsFoldedInIsTheModelsResidual) {
+  // A switching-level drive's log through the real drive's statistics (bus logged: narrow, wide and
+  // bus shares), the known inverter error and voltage angle folded into the voltage entries: the
+  // fitness is the exact fit's residual of the model with them as parameters, at any point, and the
+  // swarm's batch call gives each point's value.
+  Scenario s = test_helpers::scenario("industrial_pwm.yaml");
+  s.duration = 0.4;
+  const auto data = test_helpers::run(s);
+  IdentifierConfig c = loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/real_drive.yaml"));
+  BlockStatistics stats(c.window);
+  stats.configure(s.drive.sample_period);
+  for (const auto& x : data) stats.add(x.sample);
+  ASSERT_TRUE(stats.busVoltageLogged());
+  const LinearBlockModel model = LinearBlockModel::withVoltageAngle(LinearBlockModel::inverterWithShapeAndBus());
+  std::vector<ParameterVector> points;
+  for (int k = 0; k < 23; ++k)
+    points.push_back({3.6 * (1.0 + 0.01 * k), 0.036 * (1.0 - 0.004 * k), 0.051 * (1.0 + 0.003 * k), 0.55 * (1.0 - 0.002 * k)});
+  for (const auto& [V, V_wide, V_bus, a] : std::vector<std::array<double, 4>>{{0.0, 0.0, 0.0, 0.0},
+                                                                             {12.0, 0.0, 0.0, 0.0},
+                                                                             {12.0, 4.0, 6.0, 0.5}}) {
+    stats.setInverterVoltage(V, V_wide, V_bus);
+    stats.setVoltageAngle(a);
+    std::vector<double> batch(points.size());
+    stats.fitness(points.data(), points.size(), batch.data());
+    for (std::size_t k = 0; k < points.size(); ++k) {
+      const ParameterVector& p = points[k];
+      Eigen::VectorXd beta(8);
+      beta << p[0], p[1], p[2], p[3], V, V_wide, V_bus, a;
+      double ms_d, ms_q, dd, dq;
+      BlockLeastSquares::residuals(stats.window(), model, beta, ms_d, ms_q, dd, dq);
+      // (The exact fit reads the sensor terms' projection fresh; the fitness, refreshed once per block length.)
+      EXPECT_NEAR(stats.fitness(p), ms_d + ms_q, 1e-6 * (ms_d + ms_q)) << "V = " << V << ", point " << k;
+      EXPECT_EQ(batch[k], stats.fitness(p)) << "V = " << V << ", point " << k;
+    }
+  }
+}
+
 // The drive model chosen from the data when nothing about the drive is declared (doc/algorithm.md
 // section 8).
 TEST(DriveModel, WithNothingDeclaredARealDrivesLogGetsTheRealDrivesModel) {
