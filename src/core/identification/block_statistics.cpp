@@ -323,7 +323,7 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
   // phase current nearest zero, its distance from zero taken as the smaller end's less the phase
   // current's whole change over the period (the path between the ends bends by far less), zero
   // where a phase changes sign. Away from the crossings the error is flat and one step follows the
-  // path (on the 36 mH switching-level drive seven substeps became one in about nine periods of ten).
+  // path (on the 36 mH switching-level drive the observer's instructions fell 2.5-fold, callgrind).
   double slope_scale = std::abs(V_narrow) / std::max(width, 1e-3) + std::abs(V_wide) / std::max(2.0 * width, 1e-3);
   if (width > 0) {
     const std::array<double, 3> from = phaseFromDq(observer_i_d_, observer_i_q_, Phasor{p.cos_theta, p.sin_theta});
