@@ -113,6 +113,25 @@ std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& in, const std:
       (state == 0 ? s_lo : s_hi) = s;
     }
   };
+  // Leg k's share of an edge at current i: at a rise the share it loses (low), at a fall the share
+  // it gains (high). Beyond `reach` the sign's; within it the dead time's ramp, the other legs high
+  // or low by where their own edges fall (`shift(j)`: their dead time's offset at this edge); with
+  // no bus voltage the smooth sign.
+  const auto edgeShare = [&](std::size_t k, double i, Vec2 mean, double reach_k, bool rising, const auto& shift) {
+    if (bus_known && t_d > 0 && std::abs(i) > reach_k) {  // beyond any ramp the dead time can make
+      return rising ? (i > 0 ? 1.0 : 0.0) : (i > 0 ? 0.0 : 1.0);
+    }
+    if (bus_known && t_d > 0) {
+      std::array<bool, 3> high{};
+      for (std::size_t j = 0; j < 3; ++j)
+        high[j] = switching[j] ? (0.5 * T * (v[j] - v[k]) + shift(j) > 0) : (v[j] + v0 > 0);
+      double s_lo, s_hi;
+      slopes(k, high, mean, s_lo, s_hi);
+      const double low = lowShare(i, s_lo, s_hi, t_d, in.width);
+      return rising ? low : 1.0 - low;
+    }
+    return rising ? 0.5 * (1.0 + smoothSign(i, in.width)) : 0.5 * (1.0 - smoothSign(i, in.width));
+  };
   // Each edge's share, first guessed from the mean current's sign, then twice from the edges (each
   // pass with the mean vector of the last; on the switching-level 36 mH drive the residual error
   // per period was 0.353, 0.346, 0.341 V after two, three, four passes).
@@ -147,18 +166,7 @@ std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& in, const std:
       const Vec2 pc = clarke(P[0], P[1], P[2]);
       const double tau = rise[k];
       const double i = i_start[k] + fund[k] * tau + ripple(k, {pc.x - tau * mean.x, pc.y - tau * mean.y});
-      if (bus_known && t_d > 0 && std::abs(i) > reach[k]) {
-        loss[k] = i > 0 ? 1.0 : 0.0;  // beyond any ramp the dead time can make
-      } else if (bus_known && t_d > 0) {
-        std::array<bool, 3> high{};
-        for (std::size_t j = 0; j < 3; ++j)
-          high[j] = switching[j] ? (0.5 * T * (v[j] - v[k]) + dead * (0.5 - loss[j]) > 0) : (v[j] + v0 > 0);
-        double s_lo, s_hi;
-        slopes(k, high, mean, s_lo, s_hi);
-        loss[k] = lowShare(i, s_lo, s_hi, t_d, in.width);
-      } else {
-        loss[k] = 0.5 * (1.0 + smoothSign(i, in.width));
-      }
+      loss[k] = edgeShare(k, i, mean, reach[k], true, [&](std::size_t j) { return dead * (0.5 - loss[j]); });
     }
     for (std::size_t k : order) {  // falls, backwards from the period's end: latest first
       if (!switching[k]) continue;
@@ -170,18 +178,7 @@ std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& in, const std:
       const Vec2 pc = clarke(P[0], P[1], P[2]);
       const double to_end = rise[k];  // T_s - tau_f
       const double i = i_end[k] - fund[k] * to_end - ripple(k, {pc.x - to_end * mean.x, pc.y - to_end * mean.y});
-      if (bus_known && t_d > 0 && std::abs(i) > reach[k]) {
-        gain[k] = i > 0 ? 0.0 : 1.0;
-      } else if (bus_known && t_d > 0) {
-        std::array<bool, 3> high{};
-        for (std::size_t j = 0; j < 3; ++j)
-          high[j] = switching[j] ? (0.5 * T * (v[j] - v[k]) + dead * (gain[j] - 0.5) > 0) : (v[j] + v0 > 0);
-        double s_lo, s_hi;
-        slopes(k, high, mean, s_lo, s_hi);
-        gain[k] = 1.0 - lowShare(i, s_lo, s_hi, t_d, in.width);
-      } else {
-        gain[k] = 0.5 * (1.0 - smoothSign(i, in.width));
-      }
+      gain[k] = edgeShare(k, i, mean, reach[k], false, [&](std::size_t j) { return dead * (gain[j] - 0.5); });
     }
   }
   for (std::size_t k = 0; k < 3; ++k) out[k] = switching[k] ? loss[k] - gain[k] : 0.0;

@@ -252,7 +252,6 @@ double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, cons
     ParameterVector optimum{};  // its fitness window's fit
     double V = 0.0;             // its slow window's inverter voltage [V]
   } smooth_best, edge_best;
-  double relevance = 1.0;
   const bool edges = angle_logged_ && inverter_voltage > 0 && fit.available && fit.optimum[kLd] > 0 && fit.optimum[kLq] > 0;
   for (int trial_index = 0; trial_index < kZeroCrossingCandidates + (edges ? kEdgeWidthCandidates : 0); ++trial_index) {
     WindowSettings candidate = w;
@@ -290,7 +289,7 @@ double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, cons
     // The slow window's blocks that count: its effective length, or the recent samples if fewer.
     const double blocks = std::min(static_cast<double>(recent_.size()) / std::max(1, trial.blockSamples()),
                                    2.0 * w.slow_time_constant / std::max(trial.blockDuration(), 1e-12));
-    relevance = 1.0 - kZeroCrossingSignificance * std::sqrt(2.0 / std::max(blocks, 1.0));
+    const double relevance = 1.0 - kZeroCrossingSignificance * std::sqrt(2.0 / std::max(blocks, 1.0));
     Best& b = candidate.inverter_edge_shape ? edge_best : smooth_best;
     if (ratio < relevance * b.ratio) {  // a narrower width only where it fits clearly better
       b.ratio = ratio;
