@@ -1,5 +1,7 @@
 #include "tool_common.hpp"
 
+#include "pmsm_param_id/io/sample_csv.hpp"
+
 #include <algorithm>
 #include <atomic>
 #include <csignal>
@@ -100,13 +102,8 @@ json estimateJson(const Estimate& e) {
 }
 
 void writeJson(const std::string& path, const json& j) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp);
-    if (!out) throw std::runtime_error(path + ": cannot write");
-    out << j.dump(1) << "\n";
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error(path + ": cannot write");
+  const std::string text = j.dump(1) + "\n";
+  writeFileAtomically(path, [&](std::FILE* f) { std::fwrite(text.data(), 1, text.size(), f); });
 }
 
 std::string fitness_override;

@@ -1,5 +1,11 @@
 // The five online identifiers on simulated drives, observability flags and bad input.
 #include <gtest/gtest.h>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 
 #include <cmath>
 #include <limits>
@@ -227,6 +233,30 @@ TEST(SampleCsvReader, AFileWithoutLineBreaksIsRefusedWithoutReadingItWhole) {
   ASSERT_EQ(log.samples.size(), 2u);
   EXPECT_DOUBLE_EQ(log.samples[1].omega_e, 6.0);
   EXPECT_EQ(log.line_numbers[1], 3u);
+}
+
+TEST(SampleCsvWriter, APipeOrDeviceIsWrittenInPlaceNotReplaced) {
+  // `simulate --csv /dev/null` once put a regular file where /dev/null was (written to a temporary
+  // name, then renamed over it). A FIFO stands in for the device: it must still be one afterwards,
+  // and its reader gets the log.
+  const std::string dir = test_helpers::writeTemp("fifo_dir_marker", "");
+  const std::string path = dir + ".fifo";
+  ::unlink(path.c_str());
+  ASSERT_EQ(::mkfifo(path.c_str(), 0600), 0) << std::strerror(errno);
+  const int reader = ::open(path.c_str(), O_RDONLY | O_NONBLOCK);  // so that the writer's open does not wait
+  ASSERT_GE(reader, 0);
+  SimulatedSample x;
+  x.sample = Sample{0.0, 1.0, 2.0, 3.0, 4.0, 5.0};
+  writeSampleCsv(path, {x});
+  struct stat st{};
+  ASSERT_EQ(::stat(path.c_str(), &st), 0);
+  EXPECT_TRUE(S_ISFIFO(st.st_mode)) << "the FIFO was replaced";
+  char buf[256] = {};
+  const ssize_t n = ::read(reader, buf, sizeof buf - 1);
+  ::close(reader);
+  ::unlink(path.c_str());
+  ASSERT_GT(n, 0);
+  EXPECT_EQ(std::string(buf).rfind("t,u_d,u_q,i_d,i_q,omega_e", 0), 0u) << buf;
 }
 
 TEST(SampleCsvReader, MissingColumnAndNonNumericCellNameTheLine) {

@@ -1,5 +1,7 @@
 // Drive logs as CSV: header t,u_d,u_q,i_d,i_q,omega_e (SI, omega_e electrical) [,theta_e] [,v_dc] [,R_s,L_d,L_q,psi_f].
 #pragma once
+#include <cstdio>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -15,6 +17,11 @@ struct SampleLog {
   bool has_truth = false;                 ///< columns R_s,L_d,L_q,psi_f present
   std::vector<ParameterVector> truth;     ///< per sample when has_truth
 };
+
+/// Writes through `body` to a temporary name in the same folder, then renames: the file appears
+/// complete or not at all. A device or a pipe (/dev/null, /dev/stdout) is written in place.
+/// std::runtime_error naming the path where it cannot be written.
+void writeFileAtomically(const std::string& path, const std::function<void(std::FILE*)>& body);
 
 /// Writes every sample with full double precision. The file appears complete or not at all
 /// (written to a temporary name in the same folder, then renamed). Throws std::runtime_error.

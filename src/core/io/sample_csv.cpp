@@ -1,5 +1,6 @@
 #include "pmsm_param_id/io/sample_csv.hpp"
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -19,24 +20,29 @@
 
 namespace pmsm_param_id {
 
-namespace {
-/// Writes through `body` to a temporary name in the same folder, then renames: the file appears
-/// complete or not at all.
-void writeAtomically(const std::string& path, const std::function<void(FILE*)>& body) {
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  FILE* f = std::fopen(tmp.c_str(), "w");
+void writeFileAtomically(const std::string& path, const std::function<void(std::FILE*)>& body) {
+  // A device or a pipe (/dev/null, /dev/stdout, a shell's process substitution) is written in
+  // place: a rename over it would put a regular file where /dev/null was.
+  struct stat st{};
+  const bool special = ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
+  const std::string target = special ? path : path + ".tmp." + std::to_string(::getpid());
+  FILE* f = std::fopen(target.c_str(), "w");
   if (!f) throw std::runtime_error(path + ": cannot write (" + std::string(std::strerror(errno)) + ")");
   body(f);
   const bool ok = std::ferror(f) == 0;
-  if (std::fclose(f) != 0 || !ok || std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
+  const bool closed = std::fclose(f) == 0;
+  if (special) {
+    if (!ok || !closed) throw std::runtime_error(path + ": write failed");
+    return;
+  }
+  if (!closed || !ok || std::rename(target.c_str(), path.c_str()) != 0) {
+    std::remove(target.c_str());
     throw std::runtime_error(path + ": write failed");
   }
 }
-}  // namespace
 
 void writeSampleCsv(const std::string& path, const std::vector<SimulatedSample>& samples) {
-  writeAtomically(path, [&](FILE* f) {
+  writeFileAtomically(path, [&](FILE* f) {
     std::fputs("t,u_d,u_q,i_d,i_q,omega_e,theta_e,v_dc,R_s,L_d,L_q,psi_f\n", f);
     for (const SimulatedSample& s : samples) {
       const Sample& x = s.sample;
@@ -71,7 +77,7 @@ void writeSampleCsv(const std::string& path, const std::vector<SimulatedSample>&
     add("v_dc", [&](const SimulatedSample& s) { return s.sample.v_dc / format.busVoltageFactor(); });
   for (int p = 0; p < kParameterCount; ++p)
     columns.emplace_back(parameterNames()[p], [p](const SimulatedSample& s) { return s.truth[p]; });
-  writeAtomically(path, [&](FILE* f) {
+  writeFileAtomically(path, [&](FILE* f) {
     for (std::size_t c = 0; c < columns.size(); ++c)
       std::fprintf(f, "%s%c", columns[c].first.c_str(), c + 1 < columns.size() ? format.separator : '\n');
     for (const SimulatedSample& s : samples)
