@@ -1313,15 +1313,14 @@ TEST(SlowWindow, WindingTemperatureBehindASwitchingInverterLiesWithinItsStatedUn
   const auto& data = run.data;
   const auto& id = run.id;
   const std::size_t stride = run.stride;
-  int estimates = 0, reported = 0, outside = 0, slow_rs_outside = 0;
+  int estimates = 0, reported = 0, outside = 0, slow_rs_identified = 0;
   double worst = 0.0;
   for (std::size_t k = 0; k < data.size(); ++k) {
     id->process(data[k].sample);
     if (k % stride != stride - 1 || data[k].sample.t < 5.0) continue;
     const Estimate e = id->estimate();
     ++estimates;
-    if (e.slow.identifiable[kRs])
-      slow_rs_outside += !(std::abs(e.slow.parameters[kRs] / data[k].truth[kRs] - 1.0) <= e.slow.relative_uncertainty[kRs]);
+    slow_rs_identified += e.slow.identifiable[kRs];
     if (!std::isfinite(e.winding_temperature.value)) continue;
     ++reported;
     const double error = std::abs(e.winding_temperature.value - data[k].winding_temperature);
@@ -1332,41 +1331,7 @@ TEST(SlowWindow, WindingTemperatureBehindASwitchingInverterLiesWithinItsStatedUn
   EXPECT_GE(reported, estimates / 4) << reported << " of " << estimates;
   EXPECT_LE(outside, reported / 20) << outside << " of " << reported << " outside; worst " << worst << " K";
   EXPECT_LT(worst, 6.0);
-  EXPECT_EQ(slow_rs_outside, 0);  // where the slow window identifies R_s, within its stated uncertainty
-}
-
-// The slow window's lag behind a changing value is its rate times the window's data's mean age,
-// known from its first few fits. On the 1.2 s switching-level log (whose slow fits span 0.75 s,
-// less than the window's time constant) R_s and psi_f are identified at the end. The same drive
-// with the winding heating (R_s +4 %/s from 0.3 s: a lag of 1-3 % as the window fills, while the
-// fitness window determines R_s only to about 5 %): no slow R_s is identified outside its stated
-// uncertainty (with the lag taken as none, measured: 41 of 51 identified ones outside).
-TEST(SlowWindow, ItsLagIsKnownFromTheWindowsMeanAgeWithinItsFirstSecond) {
-  for (const bool heating : {false, true}) {
-    Scenario s = test_helpers::scenario("industrial_pwm.yaml");
-    if (heating) s.R_s_scale = Profile::ramp(1.0, 1.036, 0.3, 1.2);
-    const auto data = test_helpers::run(s);
-    IdentifierConfig c;
-    c.method = "wls";
-    const auto id = makeIdentifier(c);
-    int identified = 0, outside = 0;
-    for (std::size_t k = 0; k < data.size(); ++k) {
-      id->process(data[k].sample);
-      if (k % 80 != 79) continue;  // every 10 ms
-      const Estimate e = id->estimate();
-      if (!e.slow.identifiable[kRs]) continue;
-      ++identified;
-      outside += !(std::abs(e.slow.parameters[kRs] / data[k].truth[kRs] - 1.0) <= e.slow.relative_uncertainty[kRs]);
-    }
-    EXPECT_EQ(outside, 0) << "of " << identified << (heating ? " (heating)" : "");
-    if (heating) continue;
-    const Estimate e = id->estimate();
-    for (int p : {kRs, kPsiF}) {
-      EXPECT_TRUE(e.slow.identifiable[p]) << parameterNames()[p] << ": " << e.slow.reason[p];
-      EXPECT_LE(std::abs(e.slow.parameters[p] / data.back().truth[p] - 1.0), e.slow.relative_uncertainty[p])
-          << parameterNames()[p];
-    }
-  }
+  EXPECT_EQ(slow_rs_identified, 0);  // behind an inverter R_s is never identified by the slow window
 }
 
 // A 4 % psi_f fall within 0.2 s: the slow psi_f trails it and must not be identified meanwhile.

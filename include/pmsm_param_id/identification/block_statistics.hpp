@@ -316,12 +316,6 @@ class BlockStatistics {
   /// The slow window: the fitness window's blocks averaged once more over slow_time_constant.
   WindowSums slowWindow() const;
   double slowTimeConstant() const { return settings_.slow_time_constant; }
-  /// How long ago, on average, the slow window's data were taken [s]: its snapshots' weighted mean
-  /// age plus the fitness window's time constant (a bound of each snapshot's own mean age); tau +
-  /// the fitness window's once the window has run for several tau, about half its span before. NaN
-  /// while the window is empty. A fit of a value that changes at a steady rate reads the value this
-  /// long ago.
-  double slowWindowMeanAge() const;
   /// The logged speed against the logged angle's rate over the long window, sum |omega_e| dt /
   /// sum sign(omega_e) dtheta_e (1 when the speed's unit is right); NaN without the angle or before
   /// two electrical turns.
@@ -458,7 +452,6 @@ class BlockStatistics {
   OffsetCrossD slow_C_d_ = OffsetCrossD::Zero();
   OffsetCrossQ slow_C_q_ = OffsetCrossQ::Zero();
   double slow_weight_ = 0.0, slow_lambda_ = 1.0;
-  double slow_mean_age_ = 0.0;  // the slow window's snapshots' weighted mean age [s]
   ProductD long_d_ = ProductD::Zero();
   ProductQ long_q_ = ProductQ::Zero();
   double long_weight_ = 0.0, long_lambda_ = 1.0;

@@ -211,13 +211,8 @@ class OnlineIdentifier {
   DriveConstants drive_constants_;  // as the slow window determined them best
   SlowFit slow_fit_;
   double slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
-  struct SlowPoint {
-    double t;        // when the fit was made [s]
-    double read_at;  // t minus the window's mean age: when the value it reads held, for a ramp [s]
-    ParameterVector optimum;
-  };
-  std::deque<SlowPoint> slow_history_;  // the consistent slow fits
-  ParameterVector slow_lag_{};  // rate x the window's mean age / x: its lag behind a changing value [-]
+  std::deque<std::pair<double, ParameterVector>> slow_history_;  // (t, optimum) of consistent slow fits
+  ParameterVector slow_lag_{};  // |x(t) - x(t - tau)| / x: the window's lag behind a changing value [-]
   OperatingPoint operating_point_;         // exponentially forgotten means, as the fitness window
   double variance_i_d_ = 0.0, variance_i_q_ = 0.0;  // and the currents' variances (the spreads, when read)
   mutable double largest_operating_current_ = 0.0;  // [A], as the map's cells scale with it

@@ -59,7 +59,6 @@ struct SlowFit {
   ParameterVector inverter_model_relative{};
   double inverter_model_spread = 0.0;  ///< that spread [V]
   bool inverter_modelled = false;
-  bool inverter_edges = false;     ///< the inverter's shape is the switching edges' model
   bool inverter_held = false;      ///< V and its shape taken from DriveConstants
   double inverter_voltage = NAN;   ///< the V in the fit [V]
   double inverter_wide_share = NAN;  ///< the part of it with twice the zero-crossing width [V]

@@ -86,7 +86,6 @@ void BlockStatistics::resetSlowWindow() {
   slow_C_d_.setZero();
   slow_C_q_.setZero();
   slow_weight_ = 0.0;
-  slow_mean_age_ = 0.0;
 }
 
 void BlockStatistics::configure(double nominal_period) {
@@ -748,10 +747,7 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
         slow_C_d_ = slow_lambda_ * slow_C_d_ + k * C_d_;
         slow_C_q_ = slow_lambda_ * slow_C_q_ + k * C_q_;
       }
-      // The snapshots' weighted mean age: the older ones aged by one block length.
-      const double kept = slow_lambda_ * slow_weight_;
-      slow_mean_age_ = kept * (slow_mean_age_ + n * nominal_period_) / (kept + n);
-      slow_weight_ = kept + n;
+      slow_weight_ = slow_lambda_ * slow_weight_ + n;
     }
     if (have_long_block_) {
       long_d_ *= long_lambda_;
@@ -914,11 +910,6 @@ WindowSums BlockStatistics::windowOf(const ProductD& d, const ProductQ& q, const
 
 WindowSums BlockStatistics::longWindow() const {
   return windowOf(long_d_, long_q_, long_N_, long_C_d_, long_C_q_, long_weight_);
-}
-
-double BlockStatistics::slowWindowMeanAge() const {
-  // Each snapshot is the fitness window's mean, whose own mean age is at most its time constant.
-  return slow_weight_ > 0 ? slow_mean_age_ + forgetting_time_constant_ : std::numeric_limits<double>::quiet_NaN();
 }
 
 WindowSums BlockStatistics::slowWindow() const {

@@ -639,36 +639,31 @@ void OnlineIdentifier::updateSlow(const FitCheck& fast) {
   slow_fit_t_ = last_t_;
   slow_lag_.fill(std::numeric_limits<double>::infinity());
   if (!(slow_fit_.available && slow_fit_.consistent)) return;
-  // The window's weighted fit trails a value that changes at a steady rate by the rate times its
-  // data's mean age m (an exponentially weighted fit of a ramp reads the ramp's value m ago: tau
-  // once the window has run for several tau, about half its span before). Each slow estimate is
-  // then x(t_i - m_i), so the rate is the slope of a straight line through the window's own
-  // estimates over the last two tau against t_i - m_i, exact for a ramp at any span; until they
-  // number kSlowLagPoints (a quarter of tau, as the fits come every tau / 20) the lag is unknown
-  // and nothing slow is identified. (The largest move within two tau would count the estimates'
-  // own noise again, three times over, on top of the statistical part; a step is caught in
-  // estimate(), against the fitness window.)
-  constexpr std::size_t kSlowLagPoints = 5;
-  const double age = stats_.slowWindowMeanAge();
-  while (!slow_history_.empty() && slow_history_.front().t < last_t_ - 2.0 * tau) slow_history_.pop_front();
-  if (slow_history_.size() + 1 >= kSlowLagPoints && std::isfinite(age)) {
-    std::vector<SlowPoint> points(slow_history_.begin(), slow_history_.end());
-    points.push_back({last_t_, last_t_ - age, slow_fit_.optimum});
-    double x_mean = 0.0;
-    for (const SlowPoint& h : points) x_mean += h.read_at;
-    x_mean /= static_cast<double>(points.size());
-    double sxx = 0.0;
-    for (const SlowPoint& h : points) sxx += (h.read_at - x_mean) * (h.read_at - x_mean);
+  // The window's exponential average trails a value that changes at a steady rate by tau x the
+  // rate (an exponentially weighted fit of a ramp reads the ramp's value tau ago). The rate is the
+  // slope of a straight line through the window's own estimates over the last two tau; until the
+  // history spans 1.75 tau the lag is unknown (and nothing slow is identified). (The largest move
+  // within two tau would count the estimates' own noise again, three times over, on top of the
+  // statistical part; a step is caught in estimate(), against the fitness window.)
+  while (!slow_history_.empty() && slow_history_.front().first < last_t_ - 2.0 * tau) slow_history_.pop_front();
+  if (!slow_history_.empty() && slow_history_.front().first <= last_t_ - 1.75 * tau) {
+    std::vector<std::pair<double, ParameterVector>> points(slow_history_.begin(), slow_history_.end());
+    points.emplace_back(last_t_, slow_fit_.optimum);
+    double t_mean = 0.0;
+    for (const auto& h : points) t_mean += h.first;
+    t_mean /= static_cast<double>(points.size());
+    double stt = 0.0;
+    for (const auto& h : points) stt += (h.first - t_mean) * (h.first - t_mean);
     for (int p = 0; p < kParameterCount; ++p) {
-      double v_mean = 0.0, sxv = 0.0;
-      for (const SlowPoint& h : points) v_mean += h.optimum[p];
-      v_mean /= static_cast<double>(points.size());
-      for (const SlowPoint& h : points) sxv += (h.read_at - x_mean) * (h.optimum[p] - v_mean);
-      const double slope = sxx > 0 ? sxv / sxx : std::numeric_limits<double>::infinity();  // [unit/s]
-      slow_lag_[p] = age * std::abs(slope) / std::abs(slow_fit_.optimum[p]);
+      double x_mean = 0.0, stx = 0.0;
+      for (const auto& h : points) x_mean += h.second[p];
+      x_mean /= static_cast<double>(points.size());
+      for (const auto& h : points) stx += (h.first - t_mean) * (h.second[p] - x_mean);
+      const double slope = stt > 0 ? stx / stt : 0.0;  // [unit/s]
+      slow_lag_[p] = tau * std::abs(slope) / std::abs(slow_fit_.optimum[p]);
     }
   }
-  if (std::isfinite(age)) slow_history_.push_back({last_t_, last_t_ - age, slow_fit_.optimum});
+  slow_history_.emplace_back(last_t_, slow_fit_.optimum);
 }
 
 Estimate OnlineIdentifier::estimate() const {
@@ -805,7 +800,7 @@ Estimate OnlineIdentifier::estimate() const {
     // the parameter to half the temperature budget (max_uncertainty), else the fitness window's
     // optimum where it determines the parameter to the identification threshold.
     // Within learning_time the motor is declared at reference_temperature: nothing thermal changes
-    // yet, so the slow window's lag is taken as none (its own estimates are too few so early).
+    // yet, so the slow window's lag is taken as none (its own estimates span no 1.75 tau so early).
     SlowAssessment cold;
     if (early) cold = assessSlow(slow_fit_, config_.assessment, ParameterVector{});
     const auto learnable = [&](int p, double coefficient, double& value, double& uncertainty) {
