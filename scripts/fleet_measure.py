@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Runs fleet.launch and measures whether every identifier keeps up in real time.
 
-    fleet_measure.py --motors N --duration S [--method fbdapso] [--processes] [--threads 4] [--json OUT]
+    fleet_measure.py --motors N --duration S [--method fbdapso] [--processes] [--threads 4] [--substeps 2] [--json OUT]
 
 Per motor: samples processed / published and the latency of each estimate (arrival wall time minus
 the stamp of its last sample: it grows without bound when a backlog builds). With nodelets (the
@@ -71,6 +71,7 @@ def main():
     p.add_argument("--port", type=int, default=11611)
     p.add_argument("--processes", action="store_true", help="a process per plant and identifier, no nodelets")
     p.add_argument("--threads", type=int, default=4, help="the nodelet manager's worker threads")
+    p.add_argument("--substeps", type=int, default=2, help="RK4 steps per period in each plant (fleet.launch)")
     p.add_argument("--publish-period", type=float, default=0.1,
                    help="each identifier's estimate period [s]: this script reads every estimate of every motor")
     p.add_argument("--json")
@@ -80,7 +81,7 @@ def main():
     launch = subprocess.Popen(["roslaunch", "-p", str(a.port), "pmsm_param_id", "fleet.launch",
                                "motors:=%d" % a.motors, "duration:=%g" % a.duration, "method:=" + a.method,
                                "nodelets:=%s" % ("false" if a.processes else "true"), "threads:=%d" % a.threads,
-                               "publish_period:=%g" % a.publish_period],
+                               "publish_period:=%g" % a.publish_period, "substeps:=%d" % a.substeps],
                               env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     time.sleep(3.0)
     import rospy
@@ -131,7 +132,7 @@ def main():
     own_cpu = (own_cpu.user + own_cpu.system) / max(1e-9, time.time() - t0)
     # CPU per identifier over the steady part (between the 2nd snapshot and the last), RSS first/last.
     report = {"motors": a.motors, "duration_s": a.duration, "method": a.method, "measurer_cpu_percent": 100 * own_cpu,
-              "publish_period_s": a.publish_period,
+              "publish_period_s": a.publish_period, "substeps": a.substeps,
               "layout": "processes" if a.processes else "nodelets (%d threads)" % a.threads, "per_motor": []}
 
     def usage(key):

@@ -18,6 +18,7 @@ PlantSimulator::PlantSimulator(ros::NodeHandle pnh) : pnh_(pnh) {
   realtime_ = typedParam<double>(pnh_, "realtime_factor", 1.0);
   linger_ = typedParam<double>(pnh_, "linger", 1.0);
   const int seed = typedParam<int>(pnh_, "seed", -1);
+  const int substeps = typedParam<int>(pnh_, "integration_substeps", 0);
   batch_ = typedParam<int>(pnh_, "batch_size", 100);
   decimation_ = typedParam<int>(pnh_, "decimation", 100);
   wait_for_ = typedParam<int>(pnh_, "wait_for_subscribers", 0);
@@ -26,6 +27,8 @@ PlantSimulator::PlantSimulator(ros::NodeHandle pnh) : pnh_(pnh) {
   if (batch_ < 1) throw ConfigError("parameter ~batch_size: must be >= 1");
   if (decimation_ < 1) throw ConfigError("parameter ~decimation: must be >= 1");
   if (realtime_ < 0) throw ConfigError("parameter ~realtime_factor: must be >= 0");
+  if (substeps < 0 || substeps > 10000)
+    throw ConfigError("parameter ~integration_substeps: must be 0 (the scenario's) to 10000");
   try {
     scenario_ = loadScenario(path);
   } catch (const ConfigError& e) {
@@ -33,6 +36,7 @@ PlantSimulator::PlantSimulator(ros::NodeHandle pnh) : pnh_(pnh) {
   }
   if (duration > 0) scenario_.duration = duration;
   if (seed >= 0) scenario_.seed = static_cast<std::uint64_t>(seed);
+  if (substeps > 0) scenario_.drive.integration_substeps = substeps;
 }
 
 void PlantSimulator::advertise() {
