@@ -275,6 +275,9 @@ class BlockStatistics {
     edge_V_ = V;
   }
   bool edgeModelSet() const { return settings_.inverter_edge_shape && edge_L_d_ > 0 && edge_L_q_ > 0 && edge_V_ > 0; }
+  double edgeLd() const { return edge_L_d_; }  ///< setEdgeModel's L_d [H]
+  double edgeLq() const { return edge_L_q_; }  ///< setEdgeModel's L_q [H]
+  double edgeV() const { return edge_V_; }     ///< setEdgeModel's V [V]
   /// Parameters of the inverter shape's current observer (WindowSettings::inverter_shape_observer_gain),
   /// set from the data's exact fit; the observer also takes the inverter voltage set above.
   void setShapeObserverModel(const ParameterVector& p) { observer_model_ = p; }
