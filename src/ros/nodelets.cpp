@@ -27,14 +27,24 @@ class PlantSimulatorNodelet : public nodelet::Nodelet {
   void onInit() override {
     try {
       plant_ = std::make_unique<PlantSimulator>(getPrivateNodeHandle());
+      plant_->advertise();  // here, not on the pacer's thread (PlantSimulator::advertise)
     } catch (const std::exception& e) {
       NODELET_FATAL("%s (this plant does nothing)", e.what());
       return;
     }
-    // Paced by a wall timer on the nodelet's queue: the manager's worker threads run every plant,
-    // no thread per plant sleeping and waking (doc/performance.md, "Fleet").
-    plant_->start(getNodeHandle());
+    // Paced by the process's one pacer thread with every other plant of this manager: one wake-up
+    // per batch period for all of them (doc/performance.md, "Fleet").
+    pacer_ = PlantPacer::shared();
+    pacer_->add(plant_.get());
   }
+
+ public:
+  ~PlantSimulatorNodelet() override {
+    if (pacer_ && plant_) pacer_->remove(plant_.get());  // no batch of it in flight after this
+  }
+
+ private:
+  std::shared_ptr<PlantPacer> pacer_;
   std::unique_ptr<PlantSimulator> plant_;
 };
 

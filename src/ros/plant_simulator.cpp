@@ -2,6 +2,7 @@
 
 #include <rosgraph_msgs/Clock.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -145,61 +146,113 @@ std::uint64_t PlantSimulator::run() {
   return published_;
 }
 
-void PlantSimulator::start(ros::NodeHandle nh) {
-  advertise();
-  // A one-shot timer, armed again after each tick for the moment the next batch falls due (a
-  // periodic one at the batch's duration published up to a batch late, by its phase).
-  timer_ = nh.createWallTimer(ros::WallDuration(0.05), &PlantSimulator::onTick, this, true);
-}
-
-void PlantSimulator::onTick(const ros::WallTimerEvent& event) {
-  // Never an exception out of a timer callback: in a nodelet manager it would end every motor.
+double PlantSimulator::advance() {
+  // Never an exception out of here: in a nodelet manager it would end every motor.
   try {
-    tick(event);
+    return step();
   } catch (const std::exception& e) {
     ROS_ERROR("the simulated drive stopped: %s", e.what());
     phase_ = Phase::Done;
+    return -1.0;
   }
 }
 
-void PlantSimulator::tick(const ros::WallTimerEvent&) {
-  if (stop_ || phase_ == Phase::Done) return;
-  const auto rearm = [&](double seconds) {  // a one-shot timer re-arms only from stopped
-    timer_.stop();
-    timer_.setPeriod(ros::WallDuration(std::max(1e-5, seconds)));
-    timer_.start();
-  };
+double PlantSimulator::step() {
+  if (stop_ || phase_ == Phase::Done || !ros::ok()) return -1.0;
   switch (phase_) {
     case Phase::Waiting:
-      if (subscribersReady()) {
-        phase_ = Phase::Settling;  // let the remaining connections settle, as run() does
-        settle_until_ = ros::WallTime::now() + ros::WallDuration(0.5);
-        rearm(0.5);
-      } else {
-        rearm(0.05);
-      }
-      return;
+      if (!subscribersReady()) return 0.05;
+      phase_ = Phase::Settling;  // let the remaining connections settle, as run() does
+      settle_until_ = ros::WallTime::now() + ros::WallDuration(0.5);
+      return 0.5;
     case Phase::Settling:
-      if (ros::WallTime::now() < settle_until_) {
-        rearm((settle_until_ - ros::WallTime::now()).toSec());
-        return;
-      }
+      if (ros::WallTime::now() < settle_until_) return (settle_until_ - ros::WallTime::now()).toSec();
       begin();
       phase_ = Phase::Running;
       break;
     default:
       break;
   }
-  // Real time: the batches due by now; as fast as possible: one tick's worth (a batch per tick
-  // keeps the manager's other callbacks served).
+  // Real time: the batches due by now; as fast as possible: one batch per call (the pacer's other
+  // plants take their turns).
   const double elapsed = (ros::WallTime::now() - wall_start_).toSec();
   for (int n = 0; !stop_ && !sim_->done() && (realtime_ > 0 ? nextDue() <= elapsed : n < 1); ++n) publishBatch();
   if (sim_->done()) {
     finish();
     phase_ = Phase::Done;
-    return;
+    return -1.0;
   }
-  rearm(realtime_ > 0 ? nextDue() - (ros::WallTime::now() - wall_start_).toSec() : 0.0);
+  return realtime_ > 0 ? std::max(0.0, nextDue() - (ros::WallTime::now() - wall_start_).toSec()) : 0.0;
+}
+
+std::shared_ptr<PlantPacer> PlantPacer::shared() {
+  static std::mutex mutex;
+  static std::weak_ptr<PlantPacer> instance;
+  const std::lock_guard<std::mutex> lock(mutex);
+  std::shared_ptr<PlantPacer> p = instance.lock();
+  if (!p) {
+    p = std::shared_ptr<PlantPacer>(new PlantPacer());
+    instance = p;
+  }
+  return p;
+}
+
+PlantPacer::PlantPacer() : thread_([this] { loop(); }) {}
+
+PlantPacer::~PlantPacer() {
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    quit_ = true;
+  }
+  changed_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+void PlantPacer::add(PlantSimulator* plant) {
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    plants_.push_back({plant, Clock::now(), false});
+  }
+  changed_.notify_all();
+}
+
+void PlantPacer::remove(PlantSimulator* plant) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  const auto mine = [&](const Entry& e) { return e.plant == plant; };
+  // Not while its batch is being published (the loop clears busy and notifies).
+  changed_.wait(lock, [&] { return std::none_of(plants_.begin(), plants_.end(), [&](const Entry& e) { return mine(e) && e.busy; }); });
+  plants_.erase(std::remove_if(plants_.begin(), plants_.end(), mine), plants_.end());
+  lock.unlock();
+  changed_.notify_all();
+}
+
+void PlantPacer::loop() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  while (!quit_) {
+    if (plants_.empty()) {
+      changed_.wait(lock);
+      continue;
+    }
+    // The plant due first; its batches run outside the lock (a plant being added or removed, and
+    // roscpp's own locks in publish, never wait on this thread's).
+    auto first = std::min_element(plants_.begin(), plants_.end(), [](const Entry& a, const Entry& b) { return a.due < b.due; });
+    if (Clock::now() < first->due) {
+      changed_.wait_until(lock, first->due);  // an add or remove wakes it early
+      continue;
+    }
+    PlantSimulator* plant = first->plant;
+    first->busy = true;
+    lock.unlock();
+    const double wait = plant->advance();
+    lock.lock();
+    const auto it = std::find_if(plants_.begin(), plants_.end(), [&](const Entry& e) { return e.plant == plant; });
+    if (it != plants_.end()) {
+      it->busy = false;
+      if (wait < 0) plants_.erase(it);
+      else it->due = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(wait));
+    }
+    changed_.notify_all();  // a remove() waiting for this plant
+  }
 }
 
 }  // namespace pmsm_param_id

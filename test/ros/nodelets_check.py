@@ -32,6 +32,16 @@ class Nodelets(unittest.TestCase):
             last, t = e[-1], truth[-1]
             for name in ("L_q", "psi_f"):
                 self.assertLess(abs(getattr(last, name) / getattr(t, name) - 1.0), 0.01, (m, name))
+        # The second plant, in real time, paced by the same thread: each of its samples once.
+        second = []
+        rospy.Subscriber("/identifier2/estimate", ParameterEstimate, second.append)
+        self.assertTrue(self.wait_for(lambda: rospy.has_param("/drive2/samples_published"), 60), "drive2 did not finish")
+        self.assertEqual(rospy.get_param("/drive2/samples_published"), 3000)
+        self.assertTrue(self.wait_for(lambda: second and second[-1].samples_used == 3000, 30),
+                        "identifier2 did not process every sample of drive2: %s" %
+                        (second[-1].samples_used if second else "no estimate"))
+        rospy.sleep(0.3)
+        self.assertEqual(second[-1].samples_used, 3000, "identifier2 received samples twice")
         # A nodelet with a bad parameter: one FATAL line from the manager, which keeps running.
         loader = subprocess.Popen(["rosrun", "nodelet", "nodelet", "load", "pmsm_param_id/Identifier", "/manager",
                                    "__name:=broken", "_method:=no_such_method"],

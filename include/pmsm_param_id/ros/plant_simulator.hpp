@@ -17,9 +17,14 @@
 #include <ros/ros.h>
 
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "pmsm_param_id/simulation/drive_simulator.hpp"
 #include "pmsm_param_id/simulation/scenario.hpp"
@@ -33,14 +38,20 @@ class PlantSimulator {
   /// Simulates and publishes until the scenario ends, ROS shuts down or stop() is called, sleeping
   /// between batches (the node); sets ~samples_published at the end. Returns the samples published.
   std::uint64_t run();
-  /// The same driven by a wall timer on `nh`'s callback queue (the nodelet: no thread of its own;
-  /// the manager's worker threads run every plant's batches as they fall due).
-  void start(ros::NodeHandle nh);
+  /// Advertises the topics (run() does so itself). Before the first advance(), on the thread that
+  /// loads the nodelets: advertising from the pacer's thread while other nodelets subscribe let
+  /// roscpp link one subscriber to a publisher twice (an identifier received every batch twice in
+  /// one of six 64-motor runs).
+  void advertise();
+  /// One step of the same for a pacer (the nodelet: PlantPacer runs every plant of its process):
+  /// waits for the subscribers, then publishes the batches due by now. Returns the seconds until
+  /// it has more to do, or a negative number once the scenario has ended (or stop() was called).
+  /// Never throws: an error ends this plant with one message.
+  double advance();
   void stop() { stop_ = true; }
   double linger() const { return linger_; }
 
  private:
-  void advertise();
   /// True once ~wait_for_subscribers listen (or 20 s passed: then with a warning).
   bool subscribersReady();
   void begin();
@@ -49,8 +60,7 @@ class PlantSimulator {
   /// Wall time after the start when the next batch's last sample exists [s].
   double nextDue() const;
   void finish();
-  void onTick(const ros::WallTimerEvent& event);
-  void tick(const ros::WallTimerEvent&);
+  double step();
 
   ros::NodeHandle pnh_;
   Scenario scenario_;
@@ -64,7 +74,36 @@ class PlantSimulator {
   ros::WallTime wait_start_, wall_start_, settle_until_;
   std::uint64_t published_ = 0;
   enum class Phase { Waiting, Settling, Running, Done } phase_ = Phase::Waiting;
-  ros::WallTimer timer_;  // one-shot, armed for the next batch's due time
+};
+
+/// Paces every PlantSimulator of one process (the plant nodelets of a manager) from one thread:
+/// it sleeps until the earliest plant's next batch falls due and runs the batches due by then of
+/// every plant. A fleet's plants then cost one wake-up per batch period between them, not a
+/// timer, a queue dispatch and a worker's wake-up each (doc/performance.md, "Fleet").
+class PlantPacer {
+ public:
+  /// The process's pacer, started by its first user and stopped when the last one lets it go.
+  static std::shared_ptr<PlantPacer> shared();
+  ~PlantPacer();
+  /// Paces `plant` from now on, until its advance() says it has ended or remove() is called.
+  void add(PlantSimulator* plant);
+  /// Stops pacing `plant`; returns once no batch of it is being published.
+  void remove(PlantSimulator* plant);
+
+ private:
+  PlantPacer();
+  void loop();
+  using Clock = std::chrono::steady_clock;
+  struct Entry {
+    PlantSimulator* plant;
+    Clock::time_point due;
+    bool busy;  // its advance() runs (outside the lock)
+  };
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::vector<Entry> plants_;
+  bool quit_ = false;
+  std::thread thread_;
 };
 
 }  // namespace pmsm_param_id
