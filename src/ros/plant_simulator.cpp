@@ -132,17 +132,11 @@ void PlantSimulator::finish() {
 }
 
 std::uint64_t PlantSimulator::run() {
-  const auto running = [&] { return ros::ok() && !stop_; };
+  // The pacer's steps, sleeping between them (an error ends the node with its message, status 1).
   advertise();
-  while (running() && !subscribersReady()) ros::WallDuration(0.05).sleep();
-  ros::WallDuration(0.5).sleep();  // let the remaining connections (estimates -> recorder) settle
-  begin();
-  while (running() && !sim_->done()) {
-    const double ahead = nextDue() - (ros::WallTime::now() - wall_start_).toSec();
-    if (ahead > 0) ros::WallDuration(ahead).sleep();
-    publishBatch();
-  }
-  finish();
+  for (double wait = step(); wait >= 0; wait = step())
+    if (wait > 0) ros::WallDuration(wait).sleep();
+  if (phase_ == Phase::Running) finish();  // stopped (Ctrl-C) before the scenario's end
   return published_;
 }
 

@@ -60,6 +60,7 @@ class PlantSimulator {
   /// Wall time after the start when the next batch's last sample exists [s].
   double nextDue() const;
   void finish();
+  /// advance() without its catch (run() lets an error end the node).
   double step();
 
   ros::NodeHandle pnh_;
