@@ -180,23 +180,24 @@ class OnlineIdentifier {
   /// drive-effects fit's V [V], 0 = none) [A]; the switching edges' shape is tried as well where
   /// the angle is logged and V given. `chosen`, where given, receives the recent samples'
   /// statistics of the chosen shape (empty where none fitted).
-  /// `ratio`, where given, receives the chosen shape's slow-window residual ratio (d + q; infinite
-  /// where none fitted) and `relevance` the factor a rival model's ratio must stay under to count
-  /// as clearly better (1 - kZeroCrossingSignificance sqrt(2 / blocks)).
-  double chooseZeroCrossingCurrent(const WindowSettings& w, const FitCheck& fit, double inverter_voltage,
-                                   std::optional<BlockStatistics>* chosen = nullptr, double* ratio = nullptr,
-                                   double* relevance = nullptr) const;
   /// One drive model's trial on the recent samples (the statistics of `w` replayed into `trial`,
-  /// the switching edges sized by L_d, L_q and V where `w` has them): its slow window's residual
+  /// its fit started at `start`, the switching edges sized by start's L_d, L_q and edge_V where `w`
+  /// has them): its slow window's residual
   /// ratio (d + q; infinite where V is not positive and determined to 10 %), the chance factor of
-  /// a narrower width or another delay, its fitness window's optimum and its slow window's V.
+  /// a narrower width or another delay, whether its fitness window passes the fit check, its
+  /// fitness window's optimum and its slow window's V.
   struct ModelTrial {
     double ratio = std::numeric_limits<double>::infinity();
     double relevance = 1.0;
+    bool consistent = false;
     ParameterVector optimum{};
     double V = 0.0;
   };
-  ModelTrial replayModel(const WindowSettings& w, const FitCheck& fit, const ParameterVector& start, double edge_V,
+  /// `summary`, where given, receives the chosen shape's trial (ratio infinite where none fitted).
+  double chooseZeroCrossingCurrent(const WindowSettings& w, const FitCheck& fit, double inverter_voltage,
+                                   std::optional<BlockStatistics>* chosen = nullptr,
+                                   ModelTrial* summary = nullptr) const;
+  ModelTrial replayModel(const WindowSettings& w, const ParameterVector& start, double edge_V,
                          BlockStatistics& trial) const;
   void setBox(const ParameterVector& centre);
 

@@ -176,7 +176,8 @@ void OnlineIdentifier::watchDriveModel() {
     // whose delay is 1). That fit's delay is a first-order column beside a model without the
     // stationary hold's ramp or the inverter's shape, and it can miss a whole sample with a small
     // standard deviation (robot_joint_realistic with an exact angle, noise-free: -0.25 +- 0.17):
-    // so the other delay is tried in the full model below, and taken where it fits clearly better.
+    // so the other delay is tried in the full model below, and taken where it fits clearly better
+    // or where its fitness window passes the fit check and the chosen one's does not.
     int delay = 1;
     const double d = effects_fit.beta(delay_entry), d_std = effects_fit.standard_deviation(delay_entry);
     if (std::isfinite(d) && std::isfinite(d_std) && d + 3.0 * d_std < 0.5) delay = w.voltage_delay_samples;
@@ -186,13 +187,16 @@ void OnlineIdentifier::watchDriveModel() {
     w.sensor_offsets = w.sensor_gains = angle_logged_;
     w.inverter_wide_shape = true;
     const double V = effects_fit.ok ? effects_fit.beta(4) : 0.0;
-    double ratio = std::numeric_limits<double>::infinity(), relevance = 1.0;
+    ModelTrial best;
     w.inverter_zero_crossing_current =
-        chooseZeroCrossingCurrent(w, fit, std::isfinite(V) && V > 0 ? V : 0.0, &chosen, &ratio, &relevance);
+        chooseZeroCrossingCurrent(w, fit, std::isfinite(V) && V > 0 ? V : 0.0, &chosen, &best);
     if (chosen) {
       w.inverter_edge_shape = chosen->settings().inverter_edge_shape;
-      // The other delay with the chosen shape, replayed once more: its slow window's residual must
-      // beat the chosen one's by more than chance (as a narrower width must) to be taken.
+      // The other delay with the chosen shape, replayed once more: taken where its slow window's
+      // residual beats the chosen one's by more than chance (as a narrower width must), or where
+      // its fitness window passes the fit check and the chosen one's fails it (a wrong delay
+      // misfits the 50 ms window clearly: robot_joint_realistic seed 2, d residual 8.6 with delay
+      // 0 against 3.3 with 1, while the slow windows, which both misfit, stay within chance).
       WindowSettings other = w;
       other.voltage_delay_samples = 1 - w.voltage_delay_samples;
       ParameterVector start = fit.optimum;
@@ -201,8 +205,8 @@ void OnlineIdentifier::watchDriveModel() {
         start[kLq] = chosen->edgeLq();
       }
       BlockStatistics trial(other);
-      const ModelTrial t = replayModel(other, fit, start, chosen->edgeV(), trial);
-      if (t.ratio < relevance * ratio) {
+      const ModelTrial t = replayModel(other, start, chosen->edgeV(), trial);
+      if (t.ratio < best.relevance * best.ratio || (t.consistent && !best.consistent)) {
         w = other;
         chosen = std::move(trial);
       }
@@ -246,9 +250,8 @@ void OnlineIdentifier::watchDriveModel() {
   slow_history_.clear();
 }
 
-OnlineIdentifier::ModelTrial OnlineIdentifier::replayModel(const WindowSettings& w, const FitCheck& fit,
-                                                           const ParameterVector& start, double edge_V,
-                                                           BlockStatistics& trial) const {
+OnlineIdentifier::ModelTrial OnlineIdentifier::replayModel(const WindowSettings& w, const ParameterVector& start,
+                                                           double edge_V, BlockStatistics& trial) const {
   trial.configure(period_.nominal());
   if (w.inverter_edge_shape) trial.setEdgeModel(start[kLd], start[kLq], edge_V);
   for (const RecentSample& r : recent_) {
@@ -259,6 +262,7 @@ OnlineIdentifier::ModelTrial OnlineIdentifier::replayModel(const WindowSettings&
   DriveConstants scratch;
   const SlowFit slow = slowFit(trial, config_.assessment, f, scratch, last_t_);
   ModelTrial t;
+  t.consistent = f.available && f.consistent;
   // A width far beyond the ripple makes the shape a line through zero, a resistance: its two
   // widths' shares then fit anything, V hundreds of volts either way. Only a physical error
   // counts: V determined to 10 % and positive. (A negative wide share is not unphysical: it
@@ -275,8 +279,7 @@ OnlineIdentifier::ModelTrial OnlineIdentifier::replayModel(const WindowSettings&
 }
 
 double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, const FitCheck& fit, double inverter_voltage,
-                                                   std::optional<BlockStatistics>* chosen, double* ratio,
-                                                   double* relevance) const {
+                                                   std::optional<BlockStatistics>* chosen, ModelTrial* summary) const {
   // The inverter error passes zero over the current ripple at the switching edges (about
   // V_dc T_s / L: 0.1 A on a 36 mH, 540 V, 8 kHz drive, amperes on a 40 uH, 48 V, 20 kHz one), a
   // constant of the drive that no log states. Too wide a shape reads part of the error as a
@@ -298,10 +301,9 @@ double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, cons
   // kEdgeWidthCandidates): the edges explain the ripple's part of the error's spread at zero, so
   // their width is narrower. It needs the logged angle and a V to size the dead time's ripple.
   struct Best {
-    double ratio = std::numeric_limits<double>::infinity(), width = 0.0, relevance = 1.0;
+    ModelTrial summary;  // its replay's (ratio infinite: none yet)
+    double width = 0.0;
     std::optional<BlockStatistics> trial;
-    ParameterVector optimum{};  // its fitness window's fit
-    double V = 0.0;             // its slow window's inverter voltage [V]
   } smooth_best, edge_best;
   const bool edges = angle_logged_ && inverter_voltage > 0 && fit.available && fit.optimum[kLd] > 0 && fit.optimum[kLq] > 0;
   for (int trial_index = 0; trial_index < kZeroCrossingCandidates + (edges ? kEdgeWidthCandidates : 0); ++trial_index) {
@@ -311,24 +313,22 @@ double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, cons
     // better than the smooth shape (each trial replays the recent samples).
     const int edge_index = trial_index - kZeroCrossingCandidates;
     if (candidate.inverter_edge_shape &&
-        (!(smooth_best.width > 0) || (edge_index > 0 && !(edge_best.ratio < smooth_best.ratio))))
+        (!(smooth_best.width > 0) || (edge_index > 0 && !(edge_best.summary.ratio < smooth_best.summary.ratio))))
       break;
     candidate.inverter_zero_crossing_current = candidate.inverter_edge_shape
                                                    ? smooth_best.width * std::ldexp(1.0, -(edge_index + 1))
                                                    : rms * std::ldexp(1.0, -trial_index);
     // The edges' ripple from the best smooth candidate's inductances and V where it has them (its
     // model of the drive is closer than the plain fit's, which misfits the drive's effects).
-    const bool from_smooth = smooth_best.V > 0 && smooth_best.optimum[kLd] > 0 && smooth_best.optimum[kLq] > 0;
-    const ParameterVector& start = candidate.inverter_edge_shape && from_smooth ? smooth_best.optimum : fit.optimum;
+    const ModelTrial& sb = smooth_best.summary;
+    const bool from_smooth = sb.V > 0 && sb.optimum[kLd] > 0 && sb.optimum[kLq] > 0;
+    const ParameterVector& start = candidate.inverter_edge_shape && from_smooth ? sb.optimum : fit.optimum;
     BlockStatistics trial(candidate);
-    const ModelTrial t = replayModel(candidate, fit, start, from_smooth ? smooth_best.V : inverter_voltage, trial);
+    const ModelTrial t = replayModel(candidate, start, from_smooth ? sb.V : inverter_voltage, trial);
     Best& b = candidate.inverter_edge_shape ? edge_best : smooth_best;
-    if (t.ratio < t.relevance * b.ratio) {  // a narrower width only where it fits clearly better
-      b.ratio = t.ratio;
-      b.relevance = t.relevance;
+    if (t.ratio < t.relevance * b.summary.ratio) {  // a narrower width only where it fits clearly better
+      b.summary = t;
       b.width = candidate.inverter_zero_crossing_current;
-      b.optimum = t.optimum;
-      b.V = t.V;
       if (chosen) b.trial = std::move(trial);  // kept: the new model's statistics without another pass
     }
   }
@@ -337,11 +337,10 @@ double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, cons
   // inverter's physics: where the error follows the sampled current's sign, as in the average
   // model, the edges' ripple is wrong physics, and on robot_joint_realistic that rule cost 2 of 10
   // consistent fits and 3 of 8 identified L_q.)
-  const bool take_edges = edge_best.ratio < smooth_best.ratio;
+  const bool take_edges = edge_best.summary.ratio < smooth_best.summary.ratio;
   Best& b = take_edges ? edge_best : smooth_best;
-  const bool physical = b.ratio < std::numeric_limits<double>::infinity();
-  if (ratio) *ratio = b.ratio;
-  if (relevance) *relevance = b.relevance;
+  const bool physical = b.summary.ratio < std::numeric_limits<double>::infinity();
+  if (summary) *summary = b.summary;
   if (chosen) {
     *chosen = std::move(b.trial);
     if (!physical) chosen->reset();  // the middle: replayed
