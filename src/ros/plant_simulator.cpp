@@ -205,17 +205,17 @@ PlantPacer::~PlantPacer() {
 void PlantPacer::add(PlantSimulator* plant) {
   {
     const std::lock_guard<std::mutex> lock(mutex_);
-    plants_.push_back({plant, Clock::now(), false});
+    plants_.push_back({plant, Clock::now()});
   }
   changed_.notify_all();
 }
 
 void PlantPacer::remove(PlantSimulator* plant) {
   std::unique_lock<std::mutex> lock(mutex_);
-  const auto mine = [&](const Entry& e) { return e.plant == plant; };
-  // Not while its batch is being published (the loop clears busy and notifies).
-  changed_.wait(lock, [&] { return std::none_of(plants_.begin(), plants_.end(), [&](const Entry& e) { return mine(e) && e.busy; }); });
-  plants_.erase(std::remove_if(plants_.begin(), plants_.end(), mine), plants_.end());
+  // Not while its batch is being published (the loop notifies when it is out).
+  changed_.wait(lock, [&] { return running_ != plant; });
+  plants_.erase(std::remove_if(plants_.begin(), plants_.end(), [&](const Entry& e) { return e.plant == plant; }),
+                plants_.end());
   lock.unlock();
   changed_.notify_all();
 }
@@ -234,14 +234,13 @@ void PlantPacer::loop() {
       changed_.wait_until(lock, first->due);  // an add or remove wakes it early
       continue;
     }
-    PlantSimulator* plant = first->plant;
-    first->busy = true;
+    PlantSimulator* plant = running_ = first->plant;
     lock.unlock();
     const double wait = plant->advance();
     lock.lock();
+    running_ = nullptr;
     const auto it = std::find_if(plants_.begin(), plants_.end(), [&](const Entry& e) { return e.plant == plant; });
     if (it != plants_.end()) {
-      it->busy = false;
       if (wait < 0) plants_.erase(it);
       else it->due = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(wait));
     }

@@ -98,11 +98,11 @@ class PlantPacer {
   struct Entry {
     PlantSimulator* plant;
     Clock::time_point due;
-    bool busy;  // its advance() runs (outside the lock)
   };
   std::mutex mutex_;
   std::condition_variable changed_;
   std::vector<Entry> plants_;
+  PlantSimulator* running_ = nullptr;  // the plant whose advance() runs (outside the lock)
   bool quit_ = false;
   std::thread thread_;
 };
