@@ -6,6 +6,7 @@
 #include <limits>
 #include <memory>
 
+#include "pmsm_param_id/identification/angle_quantum.hpp"
 #include "pmsm_param_id/identification/block_statistics.hpp"
 #include "pmsm_param_id/identification/identifiers.hpp"
 #include "pmsm_param_id/identification/metrics.hpp"
@@ -1593,7 +1594,7 @@ TEST(DriveModel, ADeclaredModelIsKeptAndChecked) {
   const IdentifierConfig declared = loadIdentifierConfig(path);
   EXPECT_FALSE(declared.automatic_drive_model);
   const Estimate e = identify(samplesOf(data), "wls", declared);
-  EXPECT_EQ(e.drive_model, "");
+  EXPECT_EQ(e.drive_model, "");  // nothing chosen from the data: the encoder's angle as logged too
   EXPECT_FALSE(e.fit.consistent);
   EXPECT_FALSE(e.fit.likely_cause.empty());
   for (int p = 0; p < kParameterCount; ++p) EXPECT_FALSE(e.identifiable[p]) << parameterNames()[p];
@@ -1685,6 +1686,83 @@ TEST(DriveModel, TheDelayWhoseFitnessWindowFitsIsTakenAtTheSwitch) {
   EXPECT_NE(e.drive_model.find("delay 1"), std::string::npos) << e.drive_model;
   EXPECT_EQ(e.drive_model.find("delay 0"), std::string::npos) << e.drive_model;
   expectIdentifiedWithinStated(e, data.back().truth, "seed 2");
+}
+
+TEST(DriveModel, WhereTheChosenDelayMisfitsTheOtherIsTakenIfItFitsBothWindowsBetter) {
+  // robot_joint_realistic seeds 6 and 8 (delay 1), their encoder's angle smoothed: the drive-effects
+  // fit's delay read 0.12 +- 0.12 and 0.09 +- 0.13, so 0 was chosen; its 50 ms window failed the
+  // fit check (11.9 and 13.6 times the noise, d + q) where delay 1's fitted both windows better
+  // (8.8 and 7.7; slow 9.5 against 11.3 and 9.4 against 12.9), and delay 0 was kept: every
+  // parameter poor_fit at the end.
+  for (const std::uint64_t seed : {6u, 8u}) {
+    Scenario s = test_helpers::scenario("robot_joint_realistic.yaml");
+    s.seed = seed;
+    const auto data = test_helpers::run(s);
+    const Estimate e = identify(samplesOf(data), "wls", IdentifierConfig{});
+    EXPECT_NE(e.drive_model.find("delay 1"), std::string::npos) << "seed " << seed << ": " << e.drive_model;
+    EXPECT_EQ(e.drive_model.find("delay 0"), std::string::npos) << "seed " << seed << ": " << e.drive_model;
+    EXPECT_TRUE(e.fit.consistent) << "seed " << seed << ": " << e.fit.likely_cause;
+    expectIdentifiedWithinStated(e, data.back().truth, "seed " + std::to_string(seed));
+  }
+}
+
+TEST(AngleQuantum, AnEncodersCountIsFoundAndAnExactAngleHasNone) {
+  // 2^14 counts per revolution, 14 pole pairs (robot_joint_realistic's encoder): a quantum of
+  // 2 pi 14 / 16384 = 5.37 mrad of electrical angle, logged wrapped to (-pi, pi] and as float32
+  // (as many drives log it). A standstill first (no steps), a reversal, speeds from a tenth of a
+  // count to many counts per sample.
+  const double q = 2.0 * M_PI * 14.0 / 16384.0, T = 5e-5;
+  AngleQuantum encoder, exact;
+  double theta = 0.3;
+  bool decided = false;
+  for (int k = 0; k < 20000 && !decided; ++k) {
+    const double t = k * T;
+    const double omega = t < 0.002 ? 0.0 : 2000.0 * std::sin(2.0 * M_PI * 20.0 * t) + 50.0;  // [rad/s]
+    theta += omega * T;
+    const double counted = (std::floor(theta / q) + 0.5) * q;
+    decided = encoder.add(static_cast<float>(std::remainder(counted, 2.0 * M_PI)));
+    exact.add(std::remainder(theta, 2.0 * M_PI));
+  }
+  ASSERT_TRUE(encoder.decided());
+  EXPECT_NEAR(encoder.quantum(), q, 1e-3 * q);
+  ASSERT_TRUE(exact.decided());
+  EXPECT_EQ(exact.quantum(), 0.0);
+  AngleQuantum unlogged;
+  for (int k = 0; k < 1000; ++k) EXPECT_FALSE(unlogged.add(std::numeric_limits<double>::quiet_NaN()));
+  EXPECT_FALSE(unlogged.decided());
+}
+
+TEST(AngleSmoothing, AnEncodersQuantumNoLongerHidesLqAndLd) {
+  // robot_joint_realistic's encoder moves the drive's frame by up to half a count (2.7 mrad): in
+  // that frame the jitter cancels between dpsi_q/dt and omega_e psi_d except in psi_f times the
+  // rotation, ~0.3 A of q current per block (psi_f / L_q = 133 A/rad); the q noise was 0.15 A
+  // against 0.04 on d, and L_q and L_d not identified on seeds 1 and 8. The rotation from the
+  // angle's centred mean over 17 samples takes it out. Declared off, the old noise comes back.
+  IdentifierConfig off;
+  off.window.angle_smoothing_samples = 0;
+  for (const std::uint64_t seed : {1u, 8u}) {
+    Scenario s = test_helpers::scenario("robot_joint_realistic.yaml");
+    s.seed = seed;
+    const auto data = test_helpers::run(s);
+    const std::string label = "seed " + std::to_string(seed);
+    const Estimate e = identify(samplesOf(data), "wls", IdentifierConfig{});
+    EXPECT_NE(e.drive_model.find("angle quantised to 5.37 mrad"), std::string::npos) << label << ": " << e.drive_model;
+    EXPECT_LT(e.fit.noise_std_q, 0.06) << label;
+    for (int p : {kLd, kLq, kPsiF})
+      EXPECT_EQ(e.status[p], ParameterStatus::Identified) << label << " " << parameterNames()[p] << ": " << e.reason[p];
+    expectIdentifiedWithinStated(e, data.back().truth, label);
+    const Estimate raw = identify(samplesOf(data), "wls", off);
+    EXPECT_EQ(raw.drive_model.find("angle quantised"), std::string::npos) << label << ": " << raw.drive_model;
+    EXPECT_GT(raw.fit.noise_std_q, 0.12) << label;
+    EXPECT_NE(raw.status[kLq], ParameterStatus::Identified) << label;
+  }
+  const std::string bad = test_helpers::writeTemp("smoothing_bad.yaml", "angle_sensor: {smoothing_samples: -2}\n");
+  try {
+    loadIdentifierConfig(bad);
+    ADD_FAILURE() << "a negative half-width was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("angle_sensor.smoothing_samples"), std::string::npos) << e.what();
+  }
 }
 
 TEST(DriveModel, ADeclaredDelayIsCheckedAgainstALogOfTheAppliedVoltage) {

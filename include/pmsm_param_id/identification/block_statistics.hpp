@@ -76,6 +76,14 @@ struct WindowSettings {
   /// A declared angle prediction beyond the delay's own [periods of omega_e T_s]: the acting vector is
   /// turned by this times omega_e T_s (exactly) before the estimate above.
   double declared_voltage_angle = 0.0;
+  /// The rotation int omega_e dt of the flux columns (kIntegralOmega, kIntegralOmegaInD) from a
+  /// centred mean of the logged angle over 2 m + 1 samples, m this [samples]; 0 = the logged angle
+  /// as it is. A quantised angle (an encoder) moves the drive's frame by its quantisation error, and
+  /// in that frame the error cancels between the flux's derivative and omega_e psi_d, except in
+  /// psi_f times the rotation: that wants the rotor's own angle (doc/algorithm.md section 8). The
+  /// blocks then end m samples behind the newest (the mean needs m samples after the block's end).
+  /// < 0: chosen by the identifier from the data (OnlineIdentifier::watchAngleQuantum; 0 here).
+  int angle_smoothing_samples = -1;
 };
 
 /// The inverter error as the block model carries it: the amplitude V split over the shapes' entries.
@@ -189,6 +197,9 @@ class BlockStatistics {
   bool add(const Sample& s);
   /// The stream was interrupted (gap, skipped sample): blocks restart, statistics are kept.
   void breakContinuity();
+  /// Changes angle_smoothing_samples (WindowSettings) from here on: blocks restart (breakContinuity),
+  /// the sums are kept.
+  void setAngleSmoothing(int samples);
   /// Forget everything, including the nominal period.
   void reset();
   /// Forget the long check window and the slow window (the motor changed: their old blocks no
@@ -342,6 +353,8 @@ class BlockStatistics {
     double A_d, A_q;                        // int omega_e T_s u_q, int omega_e T_s u_d of the acting voltage (voltage angle)
     double shape_d, shape_q;                // inverter error shape s at the sample
     double theta_e;                         // electrical angle (NaN when not logged)
+    double Om_mean;                         // Om's centred mean over 2 m + 1 samples (angle_smoothing_samples)
+    double padding;                         // a whole number of 16-byte chunks (zeroFill)
     std::array<double, 3> phase;            // phase currents a, b, c (when theta_e is known)
   };
   /// `mid`: the phasor of the rotor angle at mid-period.
@@ -405,8 +418,10 @@ class BlockStatistics {
   double nominal_period_ = 0.0;
   double forgetting_time_constant_ = 0.0;
   double lambda_ = 1.0;
-  std::vector<Cumulative> ring_;  // capacity block_samples_ + 1
+  std::vector<Cumulative> ring_;  // capacity block_samples_ + 1 + smoothing_samples_
   std::size_t head_ = 0, count_ = 0;
+  int smoothing_samples_ = 0;         // m of angle_smoothing_samples (at most the block length)
+  std::uint64_t stretch_samples_ = 0;  // samples since the last continuity break
   PhasorTracker angle_phasor_;  // cos and sin of the logged angle, sample by sample
   // Stored sums are scaled by 1 / (product of the forgetting factors so far): adding a block is
   // then one rank-1 update with no pass over the matrices; rescaled before the scale overflows.

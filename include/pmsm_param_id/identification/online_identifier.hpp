@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "pmsm_param_id/identification/angle_quantum.hpp"
 #include "pmsm_param_id/identification/assessment.hpp"
 #include "pmsm_param_id/identification/block_statistics.hpp"
 #include "pmsm_param_id/identification/identifier_config.hpp"
@@ -175,6 +176,8 @@ class OnlineIdentifier {
   void adoptExactFitTerms(const FitCheck& fit);
   /// Nothing about the drive declared: switches to the real drive's model where the data show one.
   void watchDriveModel();
+  /// Once the logged angle's quantum is decided: the flux columns' smoothing (automatic, with one).
+  void watchAngleQuantum();
   /// The inverter error's zero-crossing width that fits the recent samples best (w: the new
   /// drive model; fit: the present window's check, for its start values; inverter_voltage: the
   /// drive-effects fit's V [V], 0 = none) [A]; the switching edges' shape is tried as well where
@@ -190,6 +193,7 @@ class OnlineIdentifier {
     double ratio = std::numeric_limits<double>::infinity();
     double relevance = 1.0;
     bool consistent = false;
+    double window_ratio = std::numeric_limits<double>::infinity();  // the fitness window's, d + q
     ParameterVector optimum{};
     double V = 0.0;
   };
@@ -244,6 +248,10 @@ class OnlineIdentifier {
   double last_drive_watch_t_ = -std::numeric_limits<double>::infinity();  // [s]
   int quiet_drive_checks_ = 0;  // checks in a row where the paper's model fitted and no drive effect showed
   std::string drive_model_note_;
+  // The logged angle's quantum (an encoder's count), decided from the first steps; with one, the
+  // flux columns' rotation is smoothed (WindowSettings::angle_smoothing_samples, when automatic).
+  AngleQuantum angle_quantum_;
+  std::string angle_note_;
   // While the drive model may still change: the last samples used (and whether the stream broke
   // before each), replayed into the new model's statistics at a change, so that a short log's load
   // steps and speed changes before the change still reach the long window.

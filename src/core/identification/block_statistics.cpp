@@ -5,6 +5,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -23,6 +24,8 @@ void BlockStatistics::reset() {
   nominal_period_ = 0.0;
   ring_.clear();
   head_ = count_ = 0;
+  stretch_samples_ = 0;
+  smoothing_samples_ = 0;
   angle_phasor_.reset();
   S_d_.setZero();
   S_q_.setZero();
@@ -107,11 +110,22 @@ void BlockStatistics::configure(double nominal_period) {
                              ? static_cast<int>(std::lround(settings_.long_difference_spacing / long_block))
                              : 0;
   if (long_spacing_blocks_ < 2) long_spacing_blocks_ = 0;  // one block apart is the consecutive difference
-  ring_.resize(static_cast<std::size_t>(block_samples_) + 1);
+  smoothing_samples_ = std::clamp(settings_.angle_smoothing_samples, 0, block_samples_);
+  ring_.resize(static_cast<std::size_t>(block_samples_ + smoothing_samples_) + 1);
+}
+
+void BlockStatistics::setAngleSmoothing(int samples) {
+  settings_.angle_smoothing_samples = std::max(0, samples);
+  if (!configured()) return;
+  smoothing_samples_ = std::min(settings_.angle_smoothing_samples, block_samples_);
+  ring_.assign(static_cast<std::size_t>(block_samples_ + smoothing_samples_) + 1, Cumulative{});
+  head_ = 0;
+  breakContinuity();
 }
 
 void BlockStatistics::breakContinuity() {
   count_ = 0;
+  stretch_samples_ = 0;
   have_previous_block_ = false;
   have_long_block_ = false;
   long_history_.clear();
@@ -660,17 +674,30 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
     c.applied_d = c.applied_prev_d = s.u_d;
     c.applied_q = c.applied_prev_q = s.u_q;
   }
+  // The rotation's centred mean (angle_smoothing_samples): the entry m samples back has its m
+  // successors now; a stretch's first entries take the widest centred window they have.
+  c.Om_mean = c.Om;
+  const int m = smoothing_samples_;
+  if (m > 0 && stretch_samples_ >= static_cast<std::uint64_t>(m)) {
+    const int h = static_cast<int>(std::min<std::uint64_t>(m, stretch_samples_ - m));
+    double sum = 0.0;
+    for (int back = m - h; back <= m + h; ++back) sum += ring_[wrap(head_ + count_ - back)].Om;
+    ring_[wrap(head_ + count_ - m)].Om_mean = sum / (2 * h + 1);
+  }
+  ++stretch_samples_;
   if (count_ == cap) head_ = wrap(head_ + 1);  // the oldest was dropped
   else ++count_;
   if (count_ < cap) return false;
 
-  const Cumulative& a = ring_[head_];  // M periods back
+  // The block: its start M + m periods back, its end m periods back (the newest with no smoothing).
+  const Cumulative& a = ring_[head_];
+  const Cumulative& e = ring_[wrap(head_ + static_cast<std::size_t>(block_samples_))];
   BlockD zd;
   BlockQ zq;
-  zd << c.i_d - a.i_d, c.I_d - a.I_d, c.OmIq - a.OmIq, c.U_d - a.U_d, c.Inv_d - a.Inv_d, c.Ustep_d - a.Ustep_d,
-      c.Wide_d - a.Wide_d, c.Bus_d - a.Bus_d, c.i_q - a.i_q, c.OmId - a.OmId, c.Om - a.Om, c.A_d - a.A_d;
-  zq << c.i_q - a.i_q, c.I_q - a.I_q, c.OmId - a.OmId, c.U_q - a.U_q, c.Om - a.Om, c.Inv_q - a.Inv_q,
-      c.Ustep_q - a.Ustep_q, c.Wide_q - a.Wide_q, c.Bus_q - a.Bus_q, c.i_d - a.i_d, c.OmIq - a.OmIq, c.A_q - a.A_q;
+  zd << e.i_d - a.i_d, e.I_d - a.I_d, e.OmIq - a.OmIq, e.U_d - a.U_d, e.Inv_d - a.Inv_d, e.Ustep_d - a.Ustep_d,
+      e.Wide_d - a.Wide_d, e.Bus_d - a.Bus_d, e.i_q - a.i_q, e.OmId - a.OmId, e.Om_mean - a.Om_mean, e.A_d - a.A_d;
+  zq << e.i_q - a.i_q, e.I_q - a.I_q, e.OmId - a.OmId, e.U_q - a.U_q, e.Om_mean - a.Om_mean, e.Inv_q - a.Inv_q,
+      e.Ustep_q - a.Ustep_q, e.Wide_q - a.Wide_q, e.Bus_q - a.Bus_q, e.i_d - a.i_d, e.OmIq - a.OmIq, e.A_q - a.A_q;
   // Forgetting: every stored sum is implicitly multiplied by lambda; new terms enter with scale_.
   scale_ /= lambda_;
   rankOneUpper(S_d_, zd, scale_);
@@ -678,17 +705,17 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
   stored_weight_ += scale_;
   OffsetBlock zn = OffsetBlock::Zero();
   if (settings_.sensor_offsets) {
-    zn(kDeltaCos) = c.cos_theta - a.cos_theta;
-    zn(kDeltaSin) = c.sin_theta - a.sin_theta;
-    zn(kIntegralCos) = c.I_cos - a.I_cos;
-    zn(kIntegralSin) = c.I_sin - a.I_sin;
+    zn(kDeltaCos) = e.cos_theta - a.cos_theta;
+    zn(kDeltaSin) = e.sin_theta - a.sin_theta;
+    zn(kIntegralCos) = e.I_cos - a.I_cos;
+    zn(kIntegralSin) = e.I_sin - a.I_sin;
     if (settings_.sensor_gains) {
-      zn(kDeltaP) = c.P - a.P;
-      zn(kDeltaQ) = c.Q - a.Q;
-      zn(kIntegralP) = c.I_P - a.I_P;
-      zn(kIntegralQ) = c.I_Q - a.I_Q;
-      zn(kIntegralOmegaP) = c.W_P - a.W_P;
-      zn(kIntegralOmegaQ) = c.W_Q - a.W_Q;
+      zn(kDeltaP) = e.P - a.P;
+      zn(kDeltaQ) = e.Q - a.Q;
+      zn(kIntegralP) = e.I_P - a.I_P;
+      zn(kIntegralQ) = e.I_Q - a.I_Q;
+      zn(kIntegralOmegaP) = e.W_P - a.W_P;
+      zn(kIntegralOmegaQ) = e.W_Q - a.W_Q;
     }
     rankOneUpper(N_, zn, scale_);  // its upper triangle: offsetPseudoInverse reads no other
     rankOne(C_d_, zd, zn, scale_);
@@ -784,14 +811,14 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
   if (++blocks_since_rebase_ == cap) {
     blocks_since_rebase_ = 0;
     const Cumulative base = ring_[head_];
-    for (Cumulative& e : ring_) {
-      e.I_d -= base.I_d; e.I_q -= base.I_q; e.OmIq -= base.OmIq; e.OmId -= base.OmId;
-      e.U_d -= base.U_d; e.U_q -= base.U_q; e.Om -= base.Om; e.Ustep_d -= base.Ustep_d;
-      e.Ustep_q -= base.Ustep_q; e.Inv_d -= base.Inv_d; e.Inv_q -= base.Inv_q;
-      e.Wide_d -= base.Wide_d; e.Wide_q -= base.Wide_q; e.Bus_d -= base.Bus_d; e.Bus_q -= base.Bus_q;
-      e.I_cos -= base.I_cos; e.I_sin -= base.I_sin;
-      e.I_P -= base.I_P; e.I_Q -= base.I_Q; e.W_P -= base.W_P; e.W_Q -= base.W_Q;
-      e.A_d -= base.A_d; e.A_q -= base.A_q;
+    for (Cumulative& r : ring_) {
+      r.I_d -= base.I_d; r.I_q -= base.I_q; r.OmIq -= base.OmIq; r.OmId -= base.OmId;
+      r.U_d -= base.U_d; r.U_q -= base.U_q; r.Om -= base.Om; r.Om_mean -= base.Om; r.Ustep_d -= base.Ustep_d;
+      r.Ustep_q -= base.Ustep_q; r.Inv_d -= base.Inv_d; r.Inv_q -= base.Inv_q;
+      r.Wide_d -= base.Wide_d; r.Wide_q -= base.Wide_q; r.Bus_d -= base.Bus_d; r.Bus_q -= base.Bus_q;
+      r.I_cos -= base.I_cos; r.I_sin -= base.I_sin;
+      r.I_P -= base.I_P; r.I_Q -= base.I_Q; r.W_P -= base.W_P; r.W_Q -= base.W_Q;
+      r.A_d -= base.A_d; r.A_q -= base.A_q;
     }
   }
   return true;

@@ -164,6 +164,8 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
       y.positive("inverter.max_relative_uncertainty", c.inverter.max_relative_uncertainty);
   c.window.sensor_offsets = y.oneOf("current_sensors.offsets", "none", {"none", "estimate"}) == "estimate";
   c.window.sensor_gains = y.oneOf("current_sensors.gains", "none", {"none", "estimate"}) == "estimate";
+  c.window.angle_smoothing_samples = static_cast<int>(
+      y.integer("angle_sensor.smoothing_samples", c.window.angle_smoothing_samples, -1, 100000));
   // The drive model: chosen from the data unless something about the drive is declared.
   const std::string drive_model = y.oneOf("drive_model", "auto", {"auto", "declared"});
   bool drive_declared = false;
