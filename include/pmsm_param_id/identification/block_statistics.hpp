@@ -50,6 +50,7 @@ struct WindowSettings {
   double slow_time_constant = 1.0;
   bool stationary_hold = false;            ///< the inverter holds the voltage in the stator frame
   double inverter_zero_crossing_current = 0.0;  ///< the inverter error passes zero as tanh(i / this) [A]; 0 = sign
+                                                ///< (< 0: to be measured from the data, a sign until then)
   bool inverter_wide_shape = false;  ///< keep the twice-the-width shape column (the inverter model is on)
   /// The narrow shape is the switching edges' (inverter_edges.hpp): each leg's dead time lost or
   /// gained by the sign of its current at the edge, the ripple there set by the acting vector, the

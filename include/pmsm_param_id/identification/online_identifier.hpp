@@ -178,6 +178,13 @@ class OnlineIdentifier {
   void watchDriveModel();
   /// Once the logged angle's quantum is decided: the flux columns' smoothing (automatic, with one).
   void watchAngleQuantum();
+  /// A declared drive model whose inverter width is left to the data: measures it (once).
+  void measureDeclaredWidth();
+  bool widthPending() const {
+    return !config_.automatic_drive_model && config_.inverter.estimate_voltage && config_.window.inverter_zero_crossing_current < 0;
+  }
+  /// Takes w as the drive model (the chosen statistics, or the recent samples replayed into new ones).
+  void adoptWindow(const WindowSettings& w, std::optional<BlockStatistics>& chosen);
   /// The inverter error's zero-crossing width that fits the recent samples best (w: the new
   /// drive model; fit: the present window's check, for its start values; inverter_voltage: the
   /// drive-effects fit's V [V], 0 = none) [A]; the switching edges' shape is tried as well where
@@ -252,6 +259,7 @@ class OnlineIdentifier {
   // flux columns' rotation is smoothed (WindowSettings::angle_smoothing_samples, when automatic).
   AngleQuantum angle_quantum_;
   std::string angle_note_;
+  double width_running_since_ = std::numeric_limits<double>::quiet_NaN();  // measureDeclaredWidth [s]
   // While the drive model may still change: the last samples used (and whether the stream broke
   // before each), replayed into the new model's statistics at a change, so that a short log's load
   // steps and speed changes before the change still reach the long window.

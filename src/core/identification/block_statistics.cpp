@@ -17,7 +17,10 @@
 
 namespace pmsm_param_id {
 
-BlockStatistics::BlockStatistics(const WindowSettings& settings) : settings_(settings) {}
+BlockStatistics::BlockStatistics(const WindowSettings& settings) : settings_(settings) {
+  // A width still to be measured (< 0): a sharp sign change until it is.
+  settings_.inverter_zero_crossing_current = std::max(0.0, settings_.inverter_zero_crossing_current);
+}
 
 void BlockStatistics::reset() {
   block_samples_ = 0;

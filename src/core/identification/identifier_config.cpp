@@ -155,7 +155,11 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   }
   const std::string model = y.oneOf("inverter.model", "none", {"none", "estimate"});
   c.inverter.estimate_voltage = model == "estimate";
-  c.window.inverter_zero_crossing_current = y.nonNegative("inverter.zero_crossing_current", 0.0, " [A] (0 = sign)");
+  // "auto": measured from the data (doc/algorithm.md section 8), as where no drive is declared.
+  c.window.inverter_zero_crossing_current =
+      y.has("inverter.zero_crossing_current") && y.text("inverter.zero_crossing_current", "") == "auto"
+          ? -1.0
+          : y.nonNegative("inverter.zero_crossing_current", 0.0, " [A] (0 = sign, auto = from the data)");
   c.window.inverter_shape_observer_gain = y.nonNegative("inverter.shape_observer_gain", c.window.inverter_shape_observer_gain,
                                                         " (0 or 1 = the measured currents)");
   if (c.window.inverter_shape_observer_gain > 1)

@@ -96,10 +96,11 @@ std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& in, const std:
   // The ripple of phase k for stator-frame volt-seconds lambda: its row of L^-1 lambda.
   // Its rows for the three phases (a row of the inverse Clarke transform times L^-1), once.
   const double i00 = (S - D * c2) / det, i01 = -D * s2 / det, i11 = (S + D * c2) / det;
-  double row[3][2];
+  double row[3][2], row_norm[3];
   for (std::size_t k = 0; k < 3; ++k) {
     row[k][0] = kRow[k][0] * i00 + kRow[k][1] * i01;
     row[k][1] = kRow[k][0] * i01 + kRow[k][1] * i11;
+    row_norm[k] = std::sqrt(row[k][0] * row[k][0] + row[k][1] * row[k][1]);  // (sqrt, not hypot: finite values)
   }
   const auto ripple = [&](std::size_t k, Vec2 lambda) { return row[k][0] * lambda.x + row[k][1] * lambda.y; };
   // Leg k's slope within a dead time with the legs in `high` and k itself low or high [A/s]; the
@@ -152,11 +153,10 @@ std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& in, const std:
     // How far from zero an edge current can be and still change sign within the dead time: its
     // slope is at most |fund| + |row| (2/3 V_dc + |mean|); six widths beyond that the share is the sign's.
     std::array<double, 3> reach{};
-    if (bus_known && t_d > 0)
-      for (std::size_t k = 0; k < 3; ++k)
-        reach[k] = (std::abs(fund[k]) + std::hypot(row[k][0], row[k][1]) *
-                                            (2.0 / 3.0 * in.bus_voltage + std::hypot(mean.x, mean.y))) * t_d +
-                   6.0 * in.width;
+    if (bus_known && t_d > 0) {
+      const double volts = 2.0 / 3.0 * in.bus_voltage + std::sqrt(mean.x * mean.x + mean.y * mean.y);
+      for (std::size_t k = 0; k < 3; ++k) reach[k] = (std::abs(fund[k]) + row_norm[k] * volts) * t_d + 6.0 * in.width;
+    }
     for (std::size_t k : order) {  // rises, earliest first
       if (!switching[k]) continue;
       std::array<double, 3> P{};

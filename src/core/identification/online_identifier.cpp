@@ -235,6 +235,10 @@ void OnlineIdentifier::watchDriveModel() {
                   last_t_);
   }
   drive_model_note_ = buf;
+  adoptWindow(w, chosen);
+}
+
+void OnlineIdentifier::adoptWindow(const WindowSettings& w, std::optional<BlockStatistics>& chosen) {
   config_.window = w;
   if (chosen) {
     stats_ = std::move(*chosen);
@@ -256,6 +260,39 @@ void OnlineIdentifier::watchDriveModel() {
   slow_fit_ = SlowFit{};
   slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
   slow_history_.clear();
+}
+
+void OnlineIdentifier::measureDeclaredWidth() {
+  // A declared drive whose inverter's zero-crossing width is left to the data: measured as the
+  // automatic model measures it (chooseZeroCrossingCurrent), once the motor has run with current
+  // for kDriveEffectWindows forgetting time constants, so that the recent samples hold the window's
+  // worth of zero crossings. Why: a declared width is a constant of one inverter; real_drive.yaml's
+  // 0.3 A on robot_joint_realistic's 0.5 A (its exact angle) read R_s 2.14 % off along the run,
+  // identified, and noise-free R_s -0.8 %, L_q +2.2 % at 0.2 s (doc/results.md).
+  if (!stats_.hasBlocks()) return;
+  const FitCheck fit = checkFit(stats_, config_.assessment, box_.valid ? box_.centre : kGenericCentre, false, true,
+                                stats_.inverterVoltage(), false);
+  if (!fit.available) return;
+  const OperatingPoint& op = operating_point_;
+  const bool running = std::hypot(op.i_d, op.i_q) > 10.0 * std::max(fit.noise_std_d, fit.noise_std_q) &&
+                       std::abs(op.omega_e) * period_.nominal() > 1e-4;
+  if (!running) {
+    width_running_since_ = std::numeric_limits<double>::quiet_NaN();
+    return;
+  }
+  if (std::isnan(width_running_since_)) width_running_since_ = last_t_;
+  if (last_t_ - width_running_since_ < kDriveEffectWindows * stats_.forgettingTimeConstant()) return;
+  WindowSettings w = windowFor(config_);
+  const double V = fit.inverter_modelled && fit.inverter_voltage > 0 ? fit.inverter_voltage : 0.0;
+  std::optional<BlockStatistics> chosen;
+  w.inverter_zero_crossing_current = chooseZeroCrossingCurrent(w, fit, V, &chosen);
+  if (chosen) w.inverter_edge_shape = chosen->settings().inverter_edge_shape;
+  char buf[200];
+  std::snprintf(buf, sizeof buf, "inverter zero-crossing width %.3g A%s, from the data at t = %.4g s",
+                w.inverter_zero_crossing_current, w.inverter_edge_shape ? " (switching edges)" : "", last_t_);
+  drive_model_note_ = buf;
+  adoptWindow(w, chosen);
+  recent_.clear();
 }
 
 OnlineIdentifier::ModelTrial OnlineIdentifier::replayModel(const WindowSettings& w, const ParameterVector& start,
@@ -395,6 +432,12 @@ void OnlineIdentifier::reset() {
     config_.inverter = declared_inverter_;
     stats_ = BlockStatistics(windowFor(config_));
   }
+  if (config_.window.inverter_zero_crossing_current != declared_window_.inverter_zero_crossing_current ||
+      config_.window.inverter_edge_shape != declared_window_.inverter_edge_shape) {  // a measured width
+    config_.window = declared_window_;
+    stats_ = BlockStatistics(windowFor(config_));
+  }
+  width_running_since_ = std::numeric_limits<double>::quiet_NaN();
   drive_model_switched_ = false;
   drive_model_note_.clear();
   angle_quantum_.reset();
@@ -433,14 +476,7 @@ void OnlineIdentifier::reset() {
 
 void OnlineIdentifier::watchAngleQuantum() {
   const double q = angle_quantum_.quantum();
-  // Chosen from the data where the drive model is: under a declared model the angle stays as logged
-  // unless angle_sensor.smoothing_samples is declared too. (The declared model's constants are not
-  // measured, and on robot_joint_realistic real_drive.yaml's 0.3 A zero-crossing width, against
-  // the drive's 0.5 A, left R_s 2.0 % off at t = 0.08 s with a stated +-0.96 % once the smoothed
-  // angle had taken the encoder's q noise out: doc/results.md.)
-  if (!(q > 0) || declared_window_.angle_smoothing_samples >= 0 || !config_.automatic_drive_model ||
-      !stats_.configured())
-    return;
+  if (!(q > 0) || declared_window_.angle_smoothing_samples >= 0 || !stats_.configured()) return;
   // 2 m + 1 = 17 samples cut the quantisation error at a block's ends about fourfold; at most a
   // fifth of the block keeps the mean local to its end (doc/algorithm.md section 8).
   const int m = std::min(kAngleSmoothingSamples, stats_.blockSamples() / 5);
@@ -523,7 +559,7 @@ SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status
   angle_logged_ = std::isfinite(s.theta_e);
   if (angle_quantum_.add(s.theta_e)) watchAngleQuantum();
   const bool new_block = stats_.add(s);
-  if (config_.automatic_drive_model && !(drive_model_switched_ && delay_flipped_)) {
+  if ((config_.automatic_drive_model && !(drive_model_switched_ && delay_flipped_)) || widthPending()) {
     recent_.push_back({s, broken_});
     if (recent_.size() > kDriveModelReplaySamples) recent_.pop_front();
   } else if (!recent_.empty()) {
@@ -563,6 +599,11 @@ SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status
       stats_.blocks() % static_cast<std::uint64_t>(10 * config_.swarm.reset_iterations) == 0) {
     last_drive_watch_t_ = last_t_;
     watchDriveModel();
+  }
+  if (widthPending() && new_block && !(last_t_ - last_drive_watch_t_ < 0.5 * stats_.forgettingTimeConstant()) &&
+      stats_.blocks() % static_cast<std::uint64_t>(10 * config_.swarm.reset_iterations) == 0) {
+    last_drive_watch_t_ = last_t_;
+    measureDeclaredWidth();
   }
   // A declared cold start: the thermal references are learnt from the data (see estimate()), whether or not
   // anybody asks for an estimate then (checked once per block length until both are learnt).
@@ -830,6 +871,14 @@ Estimate OnlineIdentifier::estimate() const {
       e.reason[p] = buf;
     }
   }
+  if (widthPending())
+    for (int p = 0; p < kParameterCount; ++p) {
+      if (e.status[p] != ParameterStatus::Identified) continue;
+      e.status[p] = ParameterStatus::NotExcited;
+      e.reason[p] = "the inverter error's zero-crossing width is measured from the data first "
+                    "(inverter.zero_crossing_current: auto), once the motor has run with current for 6 forgetting "
+                    "time constants";
+    }
   for (int p = 0; p < kParameterCount; ++p) e.identifiable[p] = e.status[p] == ParameterStatus::Identified;
   {
     // The lag as of this estimate: while the fitness window does not fit one set of parameters,
@@ -858,6 +907,12 @@ Estimate OnlineIdentifier::estimate() const {
         e.slow.status[p] = ParameterStatus::PoorFit;
         e.slow.reason[p] = "the fitness window's fit names a cause that holds here too: " + e.fit.likely_cause;
       }
+    if (widthPending())
+      for (int p : {kRs, kPsiF})
+        if (e.slow.status[p] == ParameterStatus::Identified) {
+          e.slow.status[p] = ParameterStatus::NotExcited;
+          e.slow.reason[p] = e.reason[p];
+        }
     for (int p = 0; p < kParameterCount; ++p) e.slow.identifiable[p] = e.slow.status[p] == ParameterStatus::Identified;
     e.slow.window_time_constant = stats_.slowTimeConstant();
     e.slow.t = slow_fit_t_;
