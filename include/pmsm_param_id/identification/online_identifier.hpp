@@ -180,6 +180,8 @@ class OnlineIdentifier {
   void watchAngleQuantum();
   /// A declared drive model whose inverter width is left to the data: measures it (once).
   void measureDeclaredWidth();
+  /// The motor runs with current (|i| above ten times the fit's noise, omega_e T_s above 1e-4).
+  bool runningWithCurrent(const FitCheck& fit) const;
   bool widthPending() const {
     return !config_.automatic_drive_model && config_.inverter.estimate_voltage && config_.window.inverter_zero_crossing_current < 0;
   }

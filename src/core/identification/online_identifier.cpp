@@ -102,9 +102,7 @@ void OnlineIdentifier::watchDriveModel() {
   // drive effect in at least kDriveEffectShare of them, this one included.
   // Only while the motor runs with current: at a standstill the noise level of the window falls to
   // zero and whatever it still remembers of the run before misfits without end.
-  const OperatingPoint& op = operating_point_;
-  const bool running = std::hypot(op.i_d, op.i_q) > 10.0 * std::max(fit.noise_std_d, fit.noise_std_q) &&
-                       std::abs(op.omega_e) * period_.nominal() > 1e-4;
+  const bool running = runningWithCurrent(fit);
   const LinearBlockModel drive_effects =
       LinearBlockModel::withDelay(LinearBlockModel::withVoltageAngle(LinearBlockModel::inverter()));
   const int delay_entry = drive_effects.size() - 1, angle_entry = drive_effects.size() - 2;
@@ -262,6 +260,12 @@ void OnlineIdentifier::adoptWindow(const WindowSettings& w, std::optional<BlockS
   slow_history_.clear();
 }
 
+bool OnlineIdentifier::runningWithCurrent(const FitCheck& fit) const {
+  const OperatingPoint& op = operating_point_;
+  return std::hypot(op.i_d, op.i_q) > 10.0 * std::max(fit.noise_std_d, fit.noise_std_q) &&
+         std::abs(op.omega_e) * period_.nominal() > 1e-4;
+}
+
 void OnlineIdentifier::measureDeclaredWidth() {
   // A declared drive whose inverter's zero-crossing width is left to the data: measured as the
   // automatic model measures it (chooseZeroCrossingCurrent), once the motor has run with current
@@ -273,10 +277,7 @@ void OnlineIdentifier::measureDeclaredWidth() {
   const FitCheck fit = checkFit(stats_, config_.assessment, box_.valid ? box_.centre : kGenericCentre, false, true,
                                 stats_.inverterVoltage(), false);
   if (!fit.available) return;
-  const OperatingPoint& op = operating_point_;
-  const bool running = std::hypot(op.i_d, op.i_q) > 10.0 * std::max(fit.noise_std_d, fit.noise_std_q) &&
-                       std::abs(op.omega_e) * period_.nominal() > 1e-4;
-  if (!running) {
+  if (!runningWithCurrent(fit)) {
     width_running_since_ = std::numeric_limits<double>::quiet_NaN();
     return;
   }
@@ -595,15 +596,13 @@ SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status
   // The drive model, where nothing about the drive was declared: watched at the same pace (before
   // the box exists too: a real drive's data may never give the paper's model a scale).
   // Every 500 samples, and at most every half forgetting time constant (at 1 MHz, every 25 000).
-  if (config_.automatic_drive_model && new_block && !(last_t_ - last_drive_watch_t_ < 0.5 * stats_.forgettingTimeConstant()) &&
-      stats_.blocks() % static_cast<std::uint64_t>(10 * config_.swarm.reset_iterations) == 0) {
+  // (A declared drive's width left to the data is measured at the same pace.)
+  const bool watch_due = new_block && !(last_t_ - last_drive_watch_t_ < 0.5 * stats_.forgettingTimeConstant()) &&
+                         stats_.blocks() % static_cast<std::uint64_t>(10 * config_.swarm.reset_iterations) == 0;
+  if (watch_due && (config_.automatic_drive_model || widthPending())) {
     last_drive_watch_t_ = last_t_;
-    watchDriveModel();
-  }
-  if (widthPending() && new_block && !(last_t_ - last_drive_watch_t_ < 0.5 * stats_.forgettingTimeConstant()) &&
-      stats_.blocks() % static_cast<std::uint64_t>(10 * config_.swarm.reset_iterations) == 0) {
-    last_drive_watch_t_ = last_t_;
-    measureDeclaredWidth();
+    if (config_.automatic_drive_model) watchDriveModel();
+    else measureDeclaredWidth();
   }
   // A declared cold start: the thermal references are learnt from the data (see estimate()), whether or not
   // anybody asks for an estimate then (checked once per block length until both are learnt).
