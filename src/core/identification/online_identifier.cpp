@@ -428,14 +428,14 @@ void OnlineIdentifier::restoreReferences(const LearntReferences& r) {
 double OnlineIdentifier::temperature() const { return std::numeric_limits<double>::quiet_NaN(); }
 
 void OnlineIdentifier::reset() {
-  if (drive_model_switched_) {  // back to the configured drive model
+  // Back to the configured drive model: what the data chose (the real drive's model, a declared
+  // drive's inverter width, the angle's smoothing) is chosen again.
+  const WindowSettings& d = declared_window_;
+  const WindowSettings& w = config_.window;
+  if (drive_model_switched_ || w.inverter_zero_crossing_current != d.inverter_zero_crossing_current ||
+      w.inverter_edge_shape != d.inverter_edge_shape || w.angle_smoothing_samples != d.angle_smoothing_samples) {
     config_.window = declared_window_;
     config_.inverter = declared_inverter_;
-    stats_ = BlockStatistics(windowFor(config_));
-  }
-  if (config_.window.inverter_zero_crossing_current != declared_window_.inverter_zero_crossing_current ||
-      config_.window.inverter_edge_shape != declared_window_.inverter_edge_shape) {  // a measured width
-    config_.window = declared_window_;
     stats_ = BlockStatistics(windowFor(config_));
   }
   width_running_since_ = std::numeric_limits<double>::quiet_NaN();
@@ -443,10 +443,6 @@ void OnlineIdentifier::reset() {
   drive_model_note_.clear();
   angle_quantum_.reset();
   angle_note_.clear();
-  if (config_.window.angle_smoothing_samples != declared_window_.angle_smoothing_samples) {
-    config_.window.angle_smoothing_samples = declared_window_.angle_smoothing_samples;
-    stats_ = BlockStatistics(windowFor(config_));
-  }
   recent_.clear();
   delay_flipped_ = false;
   drive_checks_.clear();
@@ -870,13 +866,14 @@ Estimate OnlineIdentifier::estimate() const {
       e.reason[p] = buf;
     }
   }
+  const char* const width_pending =
+      "the inverter error's zero-crossing width is measured from the data first (inverter.zero_crossing_current: "
+      "auto), once the motor has run with current for 6 forgetting time constants";
   if (widthPending())
     for (int p = 0; p < kParameterCount; ++p) {
       if (e.status[p] != ParameterStatus::Identified) continue;
       e.status[p] = ParameterStatus::NotExcited;
-      e.reason[p] = "the inverter error's zero-crossing width is measured from the data first "
-                    "(inverter.zero_crossing_current: auto), once the motor has run with current for 6 forgetting "
-                    "time constants";
+      e.reason[p] = width_pending;
     }
   for (int p = 0; p < kParameterCount; ++p) e.identifiable[p] = e.status[p] == ParameterStatus::Identified;
   {
@@ -910,7 +907,7 @@ Estimate OnlineIdentifier::estimate() const {
       for (int p : {kRs, kPsiF})
         if (e.slow.status[p] == ParameterStatus::Identified) {
           e.slow.status[p] = ParameterStatus::NotExcited;
-          e.slow.reason[p] = e.reason[p];
+          e.slow.reason[p] = width_pending;
         }
     for (int p = 0; p < kParameterCount; ++p) e.slow.identifiable[p] = e.slow.status[p] == ParameterStatus::Identified;
     e.slow.window_time_constant = stats_.slowTimeConstant();
