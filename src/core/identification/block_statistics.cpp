@@ -288,8 +288,8 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
     double J[2][2];
   };
   // Not inlined: its three copies made this function 13.5 KB of code against 7.6 KB + 2.3 KB, and
-  // with the same instructions (callgrind) the inlined form ran 10 % slower per real-drive sample
-  // (FBDAPSO on industrial_pwm, doc/performance.md).
+  // the inlined form ran 10 % slower per real-drive sample although the calls add 10 % to the
+  // observer's instructions (FBDAPSO on industrial_pwm, doc/performance.md).
   const auto evaluate = [&](double d, double q, double cos_t, double sin_t) __attribute__((noinline)) {
     const std::array<double, 3> i = phaseFromDq(d, q, Phasor{cos_t, sin_t});
     const double wide = width > 0 ? 2.0 * width : 0.02 * std::sqrt(d * d + q * q) + 1e-12;
