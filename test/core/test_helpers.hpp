@@ -28,4 +28,15 @@ inline std::string writeTemp(const std::string& name, const std::string& text) {
   return path;
 }
 
+/// Expects load() to throw Error whose message names key (a refused config key, a bad input's field).
+template <class Error, class Load>
+void expectRefusedNaming(Load load, const std::string& key, const std::string& what_was_accepted) {
+  try {
+    load();
+    ADD_FAILURE() << what_was_accepted << " was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace test_helpers
