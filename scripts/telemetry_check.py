@@ -27,10 +27,11 @@ import yaml
 PARAMETERS = ("R_s", "L_d", "L_q", "psi_f")
 
 
-def run_seed(tool, scenario, period, fmt, seed, folder, config=""):
+def run_seed(tool, scenario, period, fmt, seed, folder, config="", duration=0.0):
     log = os.path.join(folder, f"seed{seed}.csv")
     out = os.path.join(folder, f"seed{seed}.json")
     sim = [tool, "simulate", "--scenario", scenario, "--csv", log, "--telemetry-period", str(period), "--seed", str(seed)]
+    sim += ["--duration", str(duration)] if duration > 0 else []
     ident = [tool, "identify", "--csv", log, "--json", out] + (["--config", config] if config else [])
     if fmt:
         sim += ["--format", fmt]
@@ -49,11 +50,12 @@ def run_seed(tool, scenario, period, fmt, seed, folder, config=""):
     return estimate, truth
 
 
-def thermal_seed(tool, scenario, period, config, every, seed, folder, coefficients):
+def thermal_seed(tool, scenario, period, config, every, seed, folder, coefficients, duration=0.0):
     """(time, reported winding, its uncertainty, truth, reported magnet, its uncertainty, truth) per prefix."""
     log = os.path.join(folder, f"seed{seed}.csv")
     subprocess.run([tool, "simulate", "--scenario", scenario, "--csv", log, "--telemetry-period", str(period),
-                    "--seed", str(seed)], check=True, stdout=subprocess.DEVNULL)
+                    "--seed", str(seed)] + (["--duration", str(duration)] if duration > 0 else []),
+                   check=True, stdout=subprocess.DEVNULL)
     with open(log) as f:
         lines = f.read().splitlines()
     header = lines[0].split(",")
@@ -132,6 +134,7 @@ def main():
     ap.add_argument("--config", default="", help="identifier YAML (with --every: one with a thermal: block)")
     ap.add_argument("--every", type=float, default=0.0,
                     help="check the temperatures a stream reports, identifying the log up to every EVERY seconds")
+    ap.add_argument("--duration", type=float, default=0.0, help="simulate this long instead of the scenario's run.duration [s]")
     args = ap.parse_args()
     if args.every > 0:
         if not args.config or args.format:
@@ -143,7 +146,7 @@ def main():
         coefficients = (float(thermal.get("copper_coefficient", 3.93e-3)), float(thermal.get("magnet_coefficient", -1.2e-3)),
                         float(thermal["reference_temperature"]))
         results = over_seeds(args.seeds, lambda seed, folder: thermal_seed(
-            args.tool, args.scenario, args.period, args.config, args.every, seed, folder, coefficients))
+            args.tool, args.scenario, args.period, args.config, args.every, seed, folder, coefficients, args.duration))
         if not results:
             return 1
         print(f"{os.path.basename(args.scenario)} as telemetry every {args.period} s, identified up to every {args.every} s "
@@ -151,11 +154,11 @@ def main():
         thermal_table(results)
         return 0
     results = over_seeds(args.seeds, lambda seed, folder: run_seed(
-        args.tool, args.scenario, args.period, args.format, seed, folder, args.config))
+        args.tool, args.scenario, args.period, args.format, seed, folder, args.config, args.duration))
     if not results:
         return 1
-    print(f"{os.path.basename(args.scenario)} as telemetry every {args.period} s{' (' + args.format + ')' if args.format else ''}, "
-          f"{len(results)} seeds")
+    print(f"{os.path.basename(args.scenario)}{f' ({args.duration:g} s)' if args.duration > 0 else ''} as telemetry every "
+          f"{args.period} s{' (' + args.format + ')' if args.format else ''}, {len(results)} seeds")
     print(f"{'parameter':<10} {'median |error| %':>17} {'worst %':>8} {'identified':>11} {'> 2 % off':>10} {'outside stated':>15}")
     for p in PARAMETERS:
         errors, identified, wrong, outside = [], 0, 0, 0

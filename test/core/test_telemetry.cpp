@@ -227,18 +227,42 @@ TEST(TelemetryTemperature, TwoHertzTelemetryOfAHeatingMotorGivesTheWindingTemper
   EXPECT_LT(std::abs(w.value - truth), 3.0) << w.value << " +- " << w.uncertainty << " against " << truth;
   EXPECT_LE(std::abs(w.value - truth), w.uncertainty);
   const Temperature& m = f.estimate.magnet_temperature;
-  if (std::isfinite(m.value)) EXPECT_LE(std::abs(m.value - data.back().magnet_temperature), m.uncertainty);
+  if (std::isfinite(m.value)) {
+    EXPECT_LE(std::abs(m.value - data.back().magnet_temperature), m.uncertainty);
+  }
   // One set of parameters does not hold while it heats: the estimate is the trajectory's at the
   // log's end, L_q identified, nothing identified outside its stated uncertainty.
   EXPECT_TRUE(f.from_trajectory);
   EXPECT_TRUE(f.estimate.identifiable[kLq]) << f.estimate.reason[kLq];
-  for (int p = 0; p < kParameterCount; ++p)
-    if (f.estimate.identifiable[p])
+  for (int p = 0; p < kParameterCount; ++p) {
+    if (f.estimate.identifiable[p]) {
       EXPECT_LE(std::abs(errorPercent(f.estimate.parameters[p], data.back().truth[p])), 100.0 * f.estimate.relative_uncertainty[p])
           << p << ": " << f.estimate.reason[p];
+    }
+  }
   // Without the trajectory (a log cut before the second change) the constant fit is poor.
   const std::vector<SimulatedSample> early = heatingTelemetry(130.0, 0.5);
   EXPECT_FALSE(fitSteadyState(samplesOf(early), coldStart()).estimate.fit.consistent);
+}
+
+TEST(TelemetryTemperature, ColdStartWindingReadsWithinOneAndAHalfKelvinAroundTheReversal) {
+  // The winding's heating rate steps at each load change with its copper loss, so R_s's trajectory
+  // bends there; and from a cold start the magnet warms before the first change at a rate between
+  // none and the first interval's. Modelled with neither (R_s bending only on its grid, psi_f
+  // constant before the first change) the winding read 2.4 K low at 320 s and 2.2 K at 380 s here
+  // (as much on each of 30 seeds: the bias is the model's, not the noise's); with both, 1.2 and 0.6 K.
+  const std::vector<SimulatedSample> data = heatingTelemetry(380.0, 0.5);
+  for (double cut : {320.0, 380.0}) {
+    std::vector<SimulatedSample> prefix;
+    for (const SimulatedSample& s : data)
+      if (s.sample.t <= cut + 1e-9) prefix.push_back(s);
+    const SteadyStateFit f = fitSteadyState(samplesOf(prefix), coldStart());
+    const Temperature& w = f.estimate.winding_temperature;
+    ASSERT_TRUE(std::isfinite(w.value)) << cut << ": " << f.thermal_note;
+    const double truth = prefix.back().winding_temperature;
+    EXPECT_LT(std::abs(w.value - truth), 1.5) << cut << ": " << w.value << " +- " << w.uncertainty << " against " << truth;
+    EXPECT_LE(std::abs(w.value - truth), w.uncertainty) << cut;
+  }
 }
 
 TEST(TelemetryTemperature, OneLoadChangeDoesNotSplitTheWindingFromTheMagnet) {
