@@ -429,8 +429,9 @@ void thermalTrajectory(const std::vector<Sample>& steady, const std::vector<doub
   // at first, and its rate grows from its own losses alone toward the rate the first interval
   // shows: its drift before the first change lies between none and that rate's, and half of it is
   // taken (noise-free healthy_long_run at 2 Hz cut at 300 s: R_s at the first sample read 0.32 %
-  // high with none, 0.10 % low with all of it, 0.11 % high with half). Any other start may be warming or cooling:
-  // constant. Either way the stated uncertainty holds psi_f's largest rate over the distance.
+  // high with none, 0.10 % low with all of it, 0.11 % high with half). Any other start may be
+  // warming or cooling: constant. Either way the stated uncertainty holds psi_f's largest rate over
+  // the distance.
   const bool cold_start = th.enabled && given == nullptr && !(th.R_s_at_reference > 0) && !(th.psi_f_at_reference > 0);
   const double p_lead = cold_start ? kColdStartLeadShare : 0.0;
   // R_s's grid: span / 2^j with at least kThermalStretch steady samples per interval on average;
