@@ -247,10 +247,11 @@ TEST(TelemetryTemperature, TwoHertzTelemetryOfAHeatingMotorGivesTheWindingTemper
 
 TEST(TelemetryTemperature, ColdStartWindingReadsWithinOneAndAHalfKelvinAroundTheReversal) {
   // The winding's heating rate steps at each load change with its copper loss, so R_s's trajectory
-  // bends there; and from a cold start the magnet warms before the first change at a rate between
-  // none and the first interval's. Modelled with neither (R_s bending only on its grid, psi_f
-  // constant before the first change) the winding read 2.4 K low at 320 s and 2.2 K at 380 s here
-  // (as much on each of 30 seeds: the bias is the model's, not the noise's); with both, 1.2 and 0.6 K.
+  // bends there; and from a cold start the magnet warms before the first change, which the first
+  // interval's line extended back follows. Modelled with neither (R_s bending only on its grid,
+  // psi_f constant before the first change) the winding read 2.4 K low at 320 s and 2.2 K at 380 s
+  // here (as much on each of 30 seeds: the bias is the model's, not the noise's); with both, 0.7
+  // and 0.1 K.
   const std::vector<SimulatedSample> data = heatingTelemetry(380.0, 0.5);
   for (double cut : {320.0, 380.0}) {
     std::vector<SimulatedSample> prefix;

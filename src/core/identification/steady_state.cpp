@@ -195,8 +195,6 @@ bool timingDetermined(double k_std, double omega_ms) { return k_std * std::sqrt(
 
 // A stretch needs this many steady samples on each side of a change for the change to pin psi_f.
 constexpr std::size_t kThermalStretch = 10;
-// From a cold start, the share of the first interval's psi_f slope taken before the first change.
-constexpr double kColdStartLeadShare = 0.5;
 
 struct Sparse {  // one row of the trajectory's design: at most 2 + 2 + 4 entries
   std::array<int, 8> index{};
@@ -223,18 +221,18 @@ struct Sparse {  // one row of the trajectory's design: at most 2 + 2 + 4 entrie
   }
 };
 
-// Hat functions on knots (constant beyond the ends; before the first, with `lead` > 0, the first
-// interval's slope times lead): the two knots and weights at t.
+// Hat functions on knots (constant beyond the ends; before the first, with `extend_back`, the first
+// interval's line extended): the two knots and weights at t.
 struct Hat {
   int j0 = 0, j1 = 0;
   double w0 = 1.0, w1 = 0.0;
 };
-Hat hatAt(const std::vector<double>& knots, double t, double lead = 0.0) {
+Hat hatAt(const std::vector<double>& knots, double t, bool extend_back = false) {
   Hat h;
   if (knots.size() < 2) return h;
   if (t <= knots.front()) {
-    if (lead > 0) {
-      const double u = lead * (t - knots[0]) / (knots[1] - knots[0]);
+    if (extend_back) {
+      const double u = (t - knots[0]) / (knots[1] - knots[0]);
       h.j1 = 1;
       h.w0 = 1.0 - u;
       h.w1 = u;
@@ -267,7 +265,7 @@ struct TrajectoryFit {
 // Columns: R_s knots [0, nR), psi_f knots [nR, nR + nP), then L_d, L_q, V, k (where free; V held
 // at V_held otherwise).
 TrajectoryFit fitTrajectory(const std::vector<Sample>& steady, const std::vector<double>& r_knots,
-                            const std::vector<double>& p_knots, double p_lead, double width, const std::array<bool, kColumns>& free,
+                            const std::vector<double>& p_knots, bool p_extend_back, double width, const std::array<bool, kColumns>& free,
                             double V_held, double weight_d, double weight_q) {
   const int nR = static_cast<int>(r_knots.size()), nP = static_cast<int>(std::max<std::size_t>(1, p_knots.size()));
   const int n = nR + nP + 4, cLd = nR + nP, cLq = cLd + 1, cV = cLd + 2, cK = cLd + 3;
@@ -279,7 +277,7 @@ TrajectoryFit fitTrajectory(const std::vector<Sample>& steady, const std::vector
   for (std::size_t k = 0; k < steady.size(); ++k) {
     const Sample& s = steady[k];
     const Row r = rowOf(s, width);
-    const Hat hr = hatAt(r_knots, s.t), hp = hatAt(p_knots, s.t, p_lead);
+    const Hat hr = hatAt(r_knots, s.t), hp = hatAt(p_knots, s.t, p_extend_back);
     Sparse& d = rd[k];
     Sparse& q = rq[k];
     d.add(hr.j0, hr.w0 * s.i_d);
@@ -323,8 +321,8 @@ TrajectoryFit fitTrajectory(const std::vector<Sample>& steady, const std::vector
 
 // A knot trajectory's value at t, its gradient over the columns added to `gradient`.
 double trajectoryAt(const std::vector<double>& knots, int offset, const Eigen::VectorXd& beta, double t,
-                    Eigen::VectorXd& gradient, double lead = 0.0) {
-  const Hat h = hatAt(knots, t, lead);
+                    Eigen::VectorXd& gradient, bool extend_back = false) {
+  const Hat h = hatAt(knots, t, extend_back);
   gradient(offset + h.j0) += h.w0;
   if (h.j1 != h.j0) gradient(offset + h.j1) += h.w1;
   return h.w0 * beta(offset + h.j0) + (h.j1 != h.j0 ? h.w1 * beta(offset + h.j1) : 0.0);
@@ -425,15 +423,15 @@ void thermalTrajectory(const std::vector<Sample>& steady, const std::vector<doub
     return;
   }
   // psi_f before the first change. From a cold start (the log's first sample is the motor at rest
-  // at the reference temperature, nothing declared or kept in its place) the magnet can only warm
-  // at first, and its rate grows from its own losses alone toward the rate the first interval
-  // shows: its drift before the first change lies between none and that rate's, and half of it is
-  // taken (noise-free healthy_long_run at 2 Hz cut at 300 s: R_s at the first sample read 0.32 %
-  // high with none, 0.10 % low with all of it, 0.11 % high with half). Any other start may be
-  // warming or cooling: constant. Either way the stated uncertainty holds psi_f's largest rate over
-  // the distance.
-  const bool cold_start = th.enabled && given == nullptr && !(th.R_s_at_reference > 0) && !(th.psi_f_at_reference > 0);
-  const double p_lead = cold_start ? kColdStartLeadShare : 0.0;
+  // at the reference temperature, nothing declared or kept in its place) the magnet is warming from
+  // the start: the first interval's line is extended back to it. Held constant instead, psi_f
+  // there reads the first change's value, and R_s at the first sample high by omega_e / i_q times
+  // the drift (noise-free at 2 Hz, the worst winding error over the log cut every 20 s: 3.0 K
+  // against 2.1 K on healthy_long_run, 7.6 K against 2.9 K on thermal_duty_cycle, whose first
+  // interval is at a lighter load). Any other start may be warming or cooling: constant. Either
+  // way the stated uncertainty holds psi_f's largest rate over the distance.
+  const bool p_extend_back =
+      th.enabled && given == nullptr && !(th.R_s_at_reference > 0) && !(th.psi_f_at_reference > 0);
   // R_s's grid: span / 2^j with at least kThermalStretch steady samples per interval on average;
   // the spacing of least BIC (chi^2 at the log's noise + columns x ln(rows)).
   const double rows = 2.0 * static_cast<double>(steady.size());
@@ -444,7 +442,7 @@ void thermalTrajectory(const std::vector<Sample>& steady, const std::vector<doub
     if (j > 0 && static_cast<double>(steady.size()) / std::exp2(j) < static_cast<double>(kThermalStretch)) break;
     const double spacing = span / std::exp2(j);
     const std::vector<double> knots = resistanceKnots(steady, spacing, 1 << j, p_knots);
-    const TrajectoryFit f = fitTrajectory(steady, knots, p_knots, p_lead, width, free, 0.0, 1.0 / var_d, 1.0 / var_q);
+    const TrajectoryFit f = fitTrajectory(steady, knots, p_knots, p_extend_back, width, free, 0.0, 1.0 / var_d, 1.0 / var_q);
     if (!f.ok) continue;
     const double bic = f.chi2 + f.columns * std::log(rows);
     if (bic < best_bic) {
@@ -462,7 +460,7 @@ void thermalTrajectory(const std::vector<Sample>& steady, const std::vector<doub
   // constants held at zero where this fit does not determine them, by the constant fit's rules (V
   // positive to 50 %, the timing to 0.1 rad of turn at the RMS speed).
   const double wd = std::max({best.mean_square_d, var_d, floor2}), wq = std::max({best.mean_square_q, var_q, floor2});
-  TrajectoryFit f = fitTrajectory(steady, r_knots, p_knots, p_lead, width, free, 0.0, 1.0 / wd, 1.0 / wq);
+  TrajectoryFit f = fitTrajectory(steady, r_knots, p_knots, p_extend_back, width, free, 0.0, 1.0 / wd, 1.0 / wq);
   {
     const int cV = static_cast<int>(r_knots.size() + p_knots.size()) + 2, cK = cV + 1;
     const auto sd = [&](int j) {
@@ -474,7 +472,7 @@ void thermalTrajectory(const std::vector<Sample>& steady, const std::vector<doub
     if (free[kTiming] && !timingDetermined(sd(cK), omega_ms)) held[kTiming] = false;
     if (held != free) {
       free = held;
-      f = fitTrajectory(steady, r_knots, p_knots, p_lead, width, free, 0.0, 1.0 / wd, 1.0 / wq);
+      f = fitTrajectory(steady, r_knots, p_knots, p_extend_back, width, free, 0.0, 1.0 / wd, 1.0 / wq);
     }
   }
   if (!f.ok) {
@@ -510,9 +508,9 @@ void thermalTrajectory(const std::vector<Sample>& steady, const std::vector<doub
     std::array<bool, kColumns> held = free;
     held[kV] = false;
     const double V = f.beta(cV);
-    const TrajectoryFit at = fitTrajectory(steady, r_knots, p_knots, p_lead, width, held, V, 1.0 / wd, 1.0 / wq);
+    const TrajectoryFit at = fitTrajectory(steady, r_knots, p_knots, p_extend_back, width, held, V, 1.0 / wd, 1.0 / wq);
     const TrajectoryFit moved =
-        fitTrajectory(steady, r_knots, p_knots, p_lead, width, held, V * (1.0 + kInverterModelFloor), 1.0 / wd, 1.0 / wq);
+        fitTrajectory(steady, r_knots, p_knots, p_extend_back, width, held, V * (1.0 + kInverterModelFloor), 1.0 / wd, 1.0 / wq);
     if (at.ok && moved.ok) inverter_shift = moved.beta - at.beta;
     else inverter_shift.setConstant(std::numeric_limits<double>::infinity());
   }
@@ -528,7 +526,7 @@ void thermalTrajectory(const std::vector<Sample>& steady, const std::vector<doub
     };
     Eigen::VectorXd gR = Eigen::VectorXd::Zero(n), gP = Eigen::VectorXd::Zero(n);
     now.value[kRs] = trajectoryAt(r_knots, 0, f.beta, now_sample.t, gR);
-    now.value[kPsiF] = trajectoryAt(p_knots, nR, f.beta, now_sample.t, gP, p_lead);
+    now.value[kPsiF] = trajectoryAt(p_knots, nR, f.beta, now_sample.t, gP, p_extend_back);
     now.value[kLd] = free[kLd] ? f.beta(cLd) : std::numeric_limits<double>::quiet_NaN();
     now.value[kLq] = free[kLq] ? f.beta(cLq) : std::numeric_limits<double>::quiet_NaN();
     const double drift = psiDrift(now_sample.t);
@@ -564,13 +562,13 @@ void thermalTrajectory(const std::vector<Sample>& steady, const std::vector<doub
   const LearntReferences none;
   const LearntReferences& kept = given ? *given : none;
   // resistance: R_s (psi_f's drift enters it as omega_e / i_q times itself) or psi_f.
-  const auto temperature = [&](const std::vector<double>& knots, int offset, double lead, double coefficient, double configured,
+  const auto temperature = [&](const std::vector<double>& knots, int offset, bool extend_back, double coefficient, double configured,
                                double kept_value, double kept_u, bool resistance, double& reference_out,
                                double& reference_u_out, double& learnt_at) {
     Temperature result;
     Eigen::VectorXd g_now = Eigen::VectorXd::Zero(n), g_ref = Eigen::VectorXd::Zero(n);
-    const double now = trajectoryAt(knots, offset, f.beta, now_sample.t, g_now, lead);
-    const double at_start = trajectoryAt(knots, offset, f.beta, first.t, g_ref, lead);
+    const double now = trajectoryAt(knots, offset, f.beta, now_sample.t, g_now, extend_back);
+    const double at_start = trajectoryAt(knots, offset, f.beta, first.t, g_ref, extend_back);
     const auto determined = [&](const Eigen::VectorXd& g) {
       for (int j = 0; j < n; ++j)
         if (g(j) != 0 && !f.determined[static_cast<std::size_t>(j)]) return false;
@@ -606,10 +604,10 @@ void thermalTrajectory(const std::vector<Sample>& steady, const std::vector<doub
     if (!(result.uncertainty <= th.max_uncertainty)) result = Temperature{};
     return result;
   };
-  e.winding_temperature = temperature(r_knots, 0, 0.0, th.copper_coefficient, th.R_s_at_reference, kept.R_s,
+  e.winding_temperature = temperature(r_knots, 0, false, th.copper_coefficient, th.R_s_at_reference, kept.R_s,
                                       kept.R_s_relative_uncertainty, true, learnt.R_s, learnt.R_s_relative_uncertainty,
                                       learnt.R_s_learnt_at);
-  e.magnet_temperature = temperature(p_knots, nR, p_lead, th.magnet_coefficient, th.psi_f_at_reference, kept.psi_f,
+  e.magnet_temperature = temperature(p_knots, nR, p_extend_back, th.magnet_coefficient, th.psi_f_at_reference, kept.psi_f,
                                      kept.psi_f_relative_uncertainty, false, learnt.psi_f,
                                      learnt.psi_f_relative_uncertainty, learnt.psi_f_learnt_at);
   if (!std::isfinite(e.winding_temperature.value) && !std::isfinite(e.magnet_temperature.value))
