@@ -245,7 +245,7 @@ TEST(TelemetryTemperature, TwoHertzTelemetryOfAHeatingMotorGivesTheWindingTemper
   EXPECT_FALSE(fitSteadyState(samplesOf(early), coldStart()).estimate.fit.consistent);
 }
 
-TEST(TelemetryTemperature, ColdStartWindingReadsWithinOneAndAHalfKelvinAroundTheReversal) {
+TEST(TelemetryTemperature, ColdStartWindingReadsWithinOneAndAHalfKelvinAfterTheReversal) {
   // The winding's heating rate steps at each load change with its copper loss, so R_s's trajectory
   // bends there; and from a cold start the magnet warms before the first change, which the first
   // interval's line extended back follows. Modelled with neither (R_s bending only on its grid,

@@ -189,9 +189,9 @@ bool timingDetermined(double k_std, double omega_ms) { return k_std * std::sqrt(
 // So psi_f (the magnet: heated through the winding and by its own losses, it changes slower) is
 // taken as piecewise linear between the changes, constant after the last (before the first: see
 // thermalTrajectory), and R_s (the winding) as piecewise linear on a uniform grid whose spacing the
-// data choose (BIC) and at each change; the inductances and the drive's constants are the log's. What psi_f's real drift between and beyond
-// its knots could move is added to the stated uncertainty (the largest rate its knots show, over
-// the distance to the nearest knot).
+// data choose (BIC) and at each change; the inductances and the drive's constants are the log's.
+// What psi_f's real drift between and beyond its knots could move is added to the stated
+// uncertainty (the largest rate its knots show, over the distance to the nearest knot).
 
 // A stretch needs this many steady samples on each side of a change for the change to pin psi_f.
 constexpr std::size_t kThermalStretch = 10;
@@ -265,8 +265,8 @@ struct TrajectoryFit {
 // Columns: R_s knots [0, nR), psi_f knots [nR, nR + nP), then L_d, L_q, V, k (where free; V held
 // at V_held otherwise).
 TrajectoryFit fitTrajectory(const std::vector<Sample>& steady, const std::vector<double>& r_knots,
-                            const std::vector<double>& p_knots, bool p_extend_back, double width, const std::array<bool, kColumns>& free,
-                            double V_held, double weight_d, double weight_q) {
+                            const std::vector<double>& p_knots, bool p_extend_back, double width,
+                            const std::array<bool, kColumns>& free, double V_held, double weight_d, double weight_q) {
   const int nR = static_cast<int>(r_knots.size()), nP = static_cast<int>(std::max<std::size_t>(1, p_knots.size()));
   const int n = nR + nP + 4, cLd = nR + nP, cLq = cLd + 1, cV = cLd + 2, cK = cLd + 3;
   TrajectoryFit out;
@@ -562,9 +562,9 @@ void thermalTrajectory(const std::vector<Sample>& steady, const std::vector<doub
   const LearntReferences none;
   const LearntReferences& kept = given ? *given : none;
   // resistance: R_s (psi_f's drift enters it as omega_e / i_q times itself) or psi_f.
-  const auto temperature = [&](const std::vector<double>& knots, int offset, bool extend_back, double coefficient, double configured,
-                               double kept_value, double kept_u, bool resistance, double& reference_out,
-                               double& reference_u_out, double& learnt_at) {
+  const auto temperature = [&](const std::vector<double>& knots, int offset, bool extend_back, double coefficient,
+                               double configured, double kept_value, double kept_u, bool resistance,
+                               double& reference_out, double& reference_u_out, double& learnt_at) {
     Temperature result;
     Eigen::VectorXd g_now = Eigen::VectorXd::Zero(n), g_ref = Eigen::VectorXd::Zero(n);
     const double now = trajectoryAt(knots, offset, f.beta, now_sample.t, g_now, extend_back);
