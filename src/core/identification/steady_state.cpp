@@ -352,6 +352,13 @@ std::vector<double> changeTimes(const std::vector<Sample>& samples, const std::v
   return changes;
 }
 
+// The index of the first of the (time-ordered) samples at or after t.
+std::size_t firstAtOrAfter(const std::vector<Sample>& samples, double t) {
+  return static_cast<std::size_t>(
+      std::lower_bound(samples.begin(), samples.end(), t, [](const Sample& s, double x) { return s.t < x; }) -
+      samples.begin());
+}
+
 // R_s's knots: a uniform grid of `intervals` over the steady samples' span, and a knot at each of
 // psi_f's (the load and speed changes), where the winding's heating rate steps with its copper loss
 // (at a load change the loss steps with i^2; a grid knot cannot bend there, and the fit then moves
@@ -362,10 +369,7 @@ std::vector<double> changeTimes(const std::vector<Sample>& samples, const std::v
 std::vector<double> resistanceKnots(const std::vector<Sample>& steady, double spacing, int intervals,
                                     const std::vector<double>& changes) {
   const double t0 = steady.front().t;
-  const auto index = [&](double t) {
-    return static_cast<std::ptrdiff_t>(
-        std::lower_bound(steady.begin(), steady.end(), t, [](const Sample& s, double x) { return s.t < x; }) - steady.begin());
-  };
+  const auto index = [&](double t) { return static_cast<std::ptrdiff_t>(firstAtOrAfter(steady, t)); };
   std::vector<double> knots(changes);
   for (int i = 0; i <= intervals; ++i) {
     const double k = i == intervals ? steady.back().t : t0 + spacing * i;
@@ -408,8 +412,7 @@ void thermalTrajectory(const std::vector<Sample>& steady, const std::vector<doub
   std::vector<double> p_knots;
   std::size_t last = 0;
   for (double c : change_times) {
-    const std::size_t before = static_cast<std::size_t>(
-        std::lower_bound(steady.begin(), steady.end(), c, [](const Sample& s, double x) { return s.t < x; }) - steady.begin());
+    const std::size_t before = firstAtOrAfter(steady, c);
     if (before < last + kThermalStretch || before + kThermalStretch > steady.size()) continue;
     p_knots.push_back(c);
     last = before;
