@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include "pmsm_param_id/identification/block_least_squares.hpp"
 #include "pmsm_param_id/identification/identifier_config.hpp"
@@ -127,8 +128,21 @@ struct Assessment {
   ParameterVector relative_uncertainty{};  ///< stated uncertainty / value [-] (inf where unknown)
 };
 
+/// The data's optimum of a little earlier (a consistent fit of the same window, age seconds ago).
+struct RecentOptimum {
+  double age = 0.0;                ///< [s]
+  double renewed = 0.0;            ///< the share of the window's weight that came in since [-]
+  bool reference = true;           ///< recent enough to assess a trailing method against (else: drift test only)
+  ParameterVector optimum{};       ///< [SI]
+  ParameterVector relative_std{};  ///< [-] (inf where it did not determine the parameter)
+};
+
 /// Status of a method's parameters against the data's fit. at_bound: the method's own bounds.
+/// recent: the data's optima of the last moments. A method that follows the window (a swarm, RLS,
+/// the EKF) trails its optimum, which moves with every sample; where the optima moved no further
+/// than the noise moves them, its value is stated against the nearest of them (doc/algorithm.md
+/// section 4).
 Assessment assess(const ParameterVector& parameters, const FitCheck& fit, const std::array<bool, kParameterCount>& at_bound,
-                  const AssessmentSettings& settings);
+                  const AssessmentSettings& settings, const std::vector<RecentOptimum>& recent = {});
 
 }  // namespace pmsm_param_id

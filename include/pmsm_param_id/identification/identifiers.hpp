@@ -30,6 +30,7 @@ class SwarmIdentifier : public OnlineIdentifier {
   std::uint64_t iterations() const override { return swarm_ ? swarm_->iterations() : 0; }
   double temperature() const override;
   double fitnessAt(const ParameterVector& p) const override;
+  bool trailsWindowOptimum() const override { return !output_error_; }
 
  private:
   std::unique_ptr<ParticleSwarm> swarm_;

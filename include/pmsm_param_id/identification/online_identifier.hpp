@@ -153,6 +153,9 @@ class OnlineIdentifier {
   virtual double temperature() const;
   /// The fitness the method minimises, at p [A^2] (the block fitness unless the method has its own).
   virtual double fitnessAt(const ParameterVector& p) const;
+  /// The method searches the window's block fitness as it changes (a swarm), so that its value
+  /// trails the window's optimum: it is assessed against the optima of the last moments too.
+  virtual bool trailsWindowOptimum() const { return false; }
   bool started() const { return box_.valid; }
   /// Re-fits the window and re-centres a data-driven box whose centre the data's optimum has left
   /// (outside [centre / sqrt(k), centre * sqrt(k)]). Returns true when it moved.
@@ -242,6 +245,19 @@ class OnlineIdentifier {
   SlowFit slow_fit_;
   double slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
   std::deque<std::pair<double, ParameterVector>> slow_history_;  // (t, optimum) of consistent slow fits
+  // The fitness window's optima of consistent fits over the last forgetting time constant (t,
+  // optimum, relative std), every tenth of it: the references a method trailing the window is
+  // assessed against, and the test that the optimum held still meanwhile.
+  struct RememberedOptimum {
+    double t;
+    ParameterVector optimum, relative_std;
+  };
+  std::deque<RememberedOptimum> recent_optima_;
+  double last_remembered_t_ = -std::numeric_limits<double>::infinity();  // [s]
+  /// Files a consistent fit's optimum among the recent ones and drops those older than the horizon.
+  void rememberOptimum(const FitCheck& fit);
+  /// The remembered optima of the last half time constant before now (none where this fit is not consistent).
+  std::vector<RecentOptimum> recentOptima(const FitCheck& fit) const;
   ParameterVector slow_lag_{};  // |x(t) - x(t - tau)| / x: the window's lag behind a changing value [-]
   OperatingPoint operating_point_;         // exponentially forgotten means, as the fitness window
   double variance_i_d_ = 0.0, variance_i_q_ = 0.0;  // and the currents' variances (the spreads, when read)

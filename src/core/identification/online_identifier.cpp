@@ -258,6 +258,8 @@ void OnlineIdentifier::adoptWindow(const WindowSettings& w, std::optional<BlockS
   slow_fit_ = SlowFit{};
   slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
   slow_history_.clear();
+  recent_optima_.clear();
+  last_remembered_t_ = -std::numeric_limits<double>::infinity();
 }
 
 bool OnlineIdentifier::runningWithCurrent(const FitCheck& fit) const {
@@ -461,6 +463,8 @@ void OnlineIdentifier::reset() {
   slow_fit_ = SlowFit{};
   slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
   slow_history_.clear();
+  recent_optima_.clear();
+  last_remembered_t_ = -std::numeric_limits<double>::infinity();
   pending_R_reference_ = pending_psi_reference_ = PendingReference{};
   operating_point_ = OperatingPoint{};
   largest_operating_current_ = 0.0;
@@ -588,6 +592,16 @@ SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status
   if (box_.valid && ++samples_since_refresh_ >= static_cast<std::uint64_t>(10 * config_.swarm.reset_iterations)) {
     samples_since_refresh_ = 0;
     refreshSearchBox();
+  } else if (box_.valid && trailsWindowOptimum() &&
+             !(last_t_ - last_remembered_t_ < 0.1 * stats_.forgettingTimeConstant() && last_t_ >= last_remembered_t_)) {
+    // Between the refreshes, the window's optimum every tenth of its time constant: the references
+    // a method that trails it is assessed against (estimate()). From the data alone, whether or
+    // not estimates are asked for.
+    const ParameterVector& start = recent_optima_.empty() ? box_.centre : recent_optima_.back().optimum;
+    const FitCheck fit = checkFit(stats_, config_.assessment, start, false, config_.inverter.estimate_voltage,
+                                  stats_.inverterVoltage(), config_.magnetics.cross_saturation);
+    if (fit.consistent) rememberOptimum(fit);
+    else last_remembered_t_ = last_t_;  // tried: the next in a tenth of the time constant
   }
   // The drive model, where nothing about the drive was declared: watched at the same pace (before
   // the box exists too: a real drive's data may never give the paper's model a scale).
@@ -710,6 +724,7 @@ bool OnlineIdentifier::refreshSearchBox() {
       if (change > 0.02 && change > 5.0 * fit.relative_std[p]) {
         stats_.resetLongWindow();  // and the slow window
         slow_history_.clear();
+        recent_optima_.clear();
         break;
       }
     }
@@ -718,6 +733,7 @@ bool OnlineIdentifier::refreshSearchBox() {
     watched_optimum_ = fit.optimum;
     have_watched_ = true;
   }
+  if (fit.consistent) rememberOptimum(fit);
   const double inner = std::sqrt(config_.search.span_factor);
   ParameterVector centre = box_.centre;
   bool moved = false;
@@ -738,6 +754,26 @@ bool OnlineIdentifier::refreshSearchBox() {
   setBox(centre);
   searchBoxMoved();
   return true;
+}
+
+void OnlineIdentifier::rememberOptimum(const FitCheck& fit) {
+  if (!fit.available) return;
+  const double horizon = stats_.forgettingTimeConstant();
+  while (!recent_optima_.empty() && (recent_optima_.front().t < last_t_ - horizon || recent_optima_.front().t > last_t_))
+    recent_optima_.pop_front();
+  if (!recent_optima_.empty() && recent_optima_.back().t == last_t_) recent_optima_.pop_back();
+  recent_optima_.push_back({last_t_, fit.optimum, fit.relative_std});
+  last_remembered_t_ = last_t_;
+}
+
+std::vector<RecentOptimum> OnlineIdentifier::recentOptima(const FitCheck& fit) const {
+  std::vector<RecentOptimum> out;
+  if (!fit.consistent || !trailsWindowOptimum()) return out;
+  const double tau = stats_.forgettingTimeConstant();
+  for (const RememberedOptimum& r : recent_optima_)
+    if (r.t < last_t_ && last_t_ - r.t <= tau)
+      out.push_back({last_t_ - r.t, 1.0 - std::exp(-(last_t_ - r.t) / tau), last_t_ - r.t <= 0.5 * tau, r.optimum, r.relative_std});
+  return out;
 }
 
 void OnlineIdentifier::updateSlow(const FitCheck& fast) {
@@ -828,10 +864,11 @@ Estimate OnlineIdentifier::estimate() const {
     fit.likely_cause = buf;
     fit.likely_cause_kind = MisfitCause::Unit;
   }
+  const std::vector<RecentOptimum> recent = recentOptima(fit);
   e.fit = fit;
   e.drive_model = drive_model_note_.empty() || angle_note_.empty() ? drive_model_note_ + angle_note_
                                                                     : drive_model_note_ + "; " + angle_note_;
-  const Assessment a = assess(e.parameters, e.fit, atBound(), config_.assessment);
+  const Assessment a = assess(e.parameters, e.fit, atBound(), config_.assessment, recent);
   const InverterAssessment inv = assessInverter(e.fit, config_.assessment, config_.inverter.max_relative_uncertainty);
   e.inverter_voltage = e.fit.inverter_modelled ? e.fit.inverter_voltage : std::numeric_limits<double>::quiet_NaN();
   e.inverter_status = inv.status;
