@@ -138,10 +138,10 @@ struct RecentOptimum {
 };
 
 /// Status of a method's parameters against the data's fit. at_bound: the method's own bounds.
-/// recent: the data's optima of the last moments. A method that follows the window (a swarm, RLS,
-/// the EKF) trails its optimum, which moves with every sample; where the optima moved no further
-/// than the noise moves them, its value is stated against the nearest of them (doc/algorithm.md
-/// section 4).
+/// recent: the data's optima of the last moments, for a method that trails the window's optimum
+/// (a swarm searching the changing fitness): where none of them moved further than the noise
+/// moves the optimum, its value is stated against the nearest of those marked `reference`
+/// (doc/algorithm.md section 4).
 Assessment assess(const ParameterVector& parameters, const FitCheck& fit, const std::array<bool, kParameterCount>& at_bound,
                   const AssessmentSettings& settings, const std::vector<RecentOptimum>& recent = {});
 

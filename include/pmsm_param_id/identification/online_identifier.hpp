@@ -256,7 +256,8 @@ class OnlineIdentifier {
   double last_remembered_t_ = -std::numeric_limits<double>::infinity();  // [s]
   /// Files a consistent fit's optimum among the recent ones and drops those older than the horizon.
   void rememberOptimum(const FitCheck& fit);
-  /// The remembered optima of the last half time constant before now (none where this fit is not consistent).
+  /// The remembered optima of the last time constant before now, those of its last half marked as
+  /// references (none for a method that does not trail the window, or where this fit is not consistent).
   std::vector<RecentOptimum> recentOptima(const FitCheck& fit) const;
   ParameterVector slow_lag_{};  // |x(t) - x(t - tau)| / x: the window's lag behind a changing value [-]
   OperatingPoint operating_point_;         // exponentially forgotten means, as the fitness window
