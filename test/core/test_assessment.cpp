@@ -270,8 +270,9 @@ TEST(Assessment, ImplausibleValuesAreNeverIdentified) {
 TEST(Assessment, AMethodTrailingTheWindowIsStatedAgainstTheOptimumItTrails) {
   // L_d determined to 3 x 0.25 % = 0.75 %; the method's value is 0.35 % from the current optimum
   // (1.10 % in all: not identified) and 0.10 % from the optimum of 25 ms ago (40 % of the window's
-  // weight new since), which the noise alone could have moved to the current one (0.25 % against
-  // 2 x 0.25 % x sqrt(0.4 x 1.4) = 0.37 %): the value is right within 0.78 % + 0.10 %.
+  // weight new since), which the noise alone could have moved to the searched fitness's optimum
+  // now, here the data's (0.25 % against 2 x 0.25 % x sqrt(0.4 x 1.4) = 0.37 %): the value is
+  // right within 0.75 % + 0.10 %.
   FitCheck fit;
   fit.available = true;
   fit.consistent = true;
@@ -282,28 +283,33 @@ TEST(Assessment, AMethodTrailingTheWindowIsStatedAgainstTheOptimumItTrails) {
   const Assessment alone = assess(x, fit, {}, AssessmentSettings{});
   EXPECT_EQ(alone.status[kLd], ParameterStatus::NotExcited) << alone.reason[kLd];
   EXPECT_NEAR(alone.relative_uncertainty[kLd], 0.0075 + 0.0035 / 0.9965, 1e-6);
-  RecentOptimum earlier{0.025, 0.4, true, fit.optimum, fit.relative_std};
+  RecentOptimum earlier{0.025, 0.4, true, fit.optimum};
   earlier.optimum[kLd] = 0.9975e-3;
-  earlier.relative_std[kLd] = 2.6e-3;
-  const Assessment trailing = assess(x, fit, {}, AssessmentSettings{}, {earlier});
+  const TrailedOptima with_earlier{fit.optimum, {earlier}};
+  const Assessment trailing = assess(x, fit, {}, AssessmentSettings{}, &with_earlier);
   EXPECT_EQ(trailing.status[kLd], ParameterStatus::Identified) << trailing.reason[kLd];
-  EXPECT_NEAR(trailing.relative_uncertainty[kLd], 0.0078 + 0.001 / 0.9965, 1e-6);
-  // An earlier optimum that states more does not replace the current one.
-  RecentOptimum vaguer = earlier;
-  vaguer.relative_std[kLd] = 4e-3;
-  EXPECT_EQ(assess(x, fit, {}, AssessmentSettings{}, {vaguer}).relative_uncertainty[kLd], alone.relative_uncertainty[kLd]);
+  EXPECT_NEAR(trailing.relative_uncertainty[kLd], 0.0075 + 0.001 / 0.9965, 1e-6);
+  // One the window did not determine (NaN) is no reference.
+  RecentOptimum undetermined = earlier;
+  undetermined.optimum[kLd] = std::numeric_limits<double>::quiet_NaN();
+  const TrailedOptima with_undetermined{fit.optimum, {undetermined}};
+  EXPECT_EQ(assess(x, fit, {}, AssessmentSettings{}, &with_undetermined).relative_uncertainty[kLd],
+            alone.relative_uncertainty[kLd]);
   // An optimum of the last time constant further from the current one than the noise moves it
   // (1 % against 0.51 %) shows a change: no earlier optimum is a reference then.
-  RecentOptimum older{0.05, 0.63, false, fit.optimum, fit.relative_std};
+  RecentOptimum older{0.05, 0.63, false, fit.optimum};
   older.optimum[kLd] = 0.990e-3;
-  const Assessment drifting = assess(x, fit, {}, AssessmentSettings{}, {older, earlier});
+  const TrailedOptima with_older{fit.optimum, {older, earlier}};
+  const Assessment drifting = assess(x, fit, {}, AssessmentSettings{}, &with_older);
   EXPECT_EQ(drifting.relative_uncertainty[kLd], alone.relative_uncertainty[kLd]);
   EXPECT_NE(drifting.status[kLd], ParameterStatus::Identified) << drifting.reason[kLd];
   EXPECT_NE(drifting.reason[kLd].find("distance to the data's optimum 0.351 % (need"), std::string::npos) << drifting.reason[kLd];
-  // Where the earlier optimum's part is still too large, the reason says which optimum it was.
-  earlier.relative_std[kLd] = 3.1e-3;
-  const Assessment named = assess(x, fit, {}, AssessmentSettings{}, {earlier});
+  // Where the distance to the earlier optimum still leaves too much, the reason says which optimum.
+  earlier.optimum[kLd] = 0.9995e-3;
+  const TrailedOptima with_nearer{fit.optimum, {earlier}};
+  const Assessment named = assess(x, fit, {}, AssessmentSettings{}, &with_nearer);
   EXPECT_EQ(named.status[kLd], ParameterStatus::NotExcited);
+  EXPECT_NEAR(named.relative_uncertainty[kLd], 0.0075 + 0.003 / 0.9965, 1e-6);
   EXPECT_NE(named.reason[kLd].find("(its optimum 25 ms ago)"), std::string::npos) << named.reason[kLd];
 }
 

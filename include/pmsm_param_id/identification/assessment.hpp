@@ -128,21 +128,26 @@ struct Assessment {
   ParameterVector relative_uncertainty{};  ///< stated uncertainty / value [-] (inf where unknown)
 };
 
-/// The data's optimum of a little earlier (a consistent fit of the same window, age seconds ago).
+/// The optimum of the fitness a swarm searches, a little earlier (age seconds ago).
 struct RecentOptimum {
-  double age = 0.0;                ///< [s]
-  double renewed = 0.0;            ///< the share of the window's weight that came in since [-]
-  bool reference = true;           ///< recent enough to assess a trailing method against (else: drift test only)
-  ParameterVector optimum{};       ///< [SI]
-  ParameterVector relative_std{};  ///< [-] (inf where it did not determine the parameter)
+  double age = 0.0;           ///< [s]
+  double renewed = 0.0;       ///< the share of the window's weight that came in since [-]
+  bool reference = true;      ///< recent enough to assess a trailing method against (else: drift test only)
+  ParameterVector optimum{};  ///< [SI] (NaN where the window did not determine the parameter)
+};
+
+/// The optima of the fitness a swarm searches: now, and over the last moments.
+struct TrailedOptima {
+  ParameterVector now{};               ///< [SI] (NaN where the window does not determine it)
+  std::vector<RecentOptimum> earlier;  ///< oldest first
 };
 
 /// Status of a method's parameters against the data's fit. at_bound: the method's own bounds.
-/// recent: the data's optima of the last moments, for a method that trails the window's optimum
-/// (a swarm searching the changing fitness): where none of them moved further than the noise
-/// moves the optimum, its value is stated against the nearest of those marked `reference`
-/// (doc/algorithm.md section 4).
+/// trailed: for a method that trails the window's optimum (a swarm searching the changing
+/// fitness), the optima of that fitness: where none of the earlier ones lies further from the one
+/// now than the noise moves it, the value is stated against the nearest of those marked
+/// `reference` where that is nearer than the data's optimum (doc/algorithm.md section 4).
 Assessment assess(const ParameterVector& parameters, const FitCheck& fit, const std::array<bool, kParameterCount>& at_bound,
-                  const AssessmentSettings& settings, const std::vector<RecentOptimum>& recent = {});
+                  const AssessmentSettings& settings, const TrailedOptima* trailed = nullptr);
 
 }  // namespace pmsm_param_id

@@ -325,6 +325,10 @@ class BlockStatistics {
   bool hasDifferences() const { return difference_weight_ > 0; }
   /// The fitness window (overlapping blocks, forgetting_time_constant).
   WindowSums window() const;
+  /// The sums the swarm's fitness reads (projected off the sensor terms, the known drive terms
+  /// folded into the voltage entry) as a window the exact fit reads with the paper's model: its
+  /// optimum is that of the fitness the swarm searches. (Empty with cross-saturation set.)
+  WindowSums searchedWindow() const;
   /// The long check window: differences of non-overlapping blocks (consecutive, and
   /// long_difference_spacing apart), long_time_constant.
   WindowSums longWindow() const;

@@ -5,10 +5,10 @@
 #pragma once
 #include <cstdint>
 #include <deque>
-#include <optional>
 #include <utility>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -245,20 +245,23 @@ class OnlineIdentifier {
   SlowFit slow_fit_;
   double slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
   std::deque<std::pair<double, ParameterVector>> slow_history_;  // (t, optimum) of consistent slow fits
-  // The fitness window's optima of consistent fits over the last forgetting time constant (t,
-  // optimum, relative std), every tenth of it: the references a method trailing the window is
-  // assessed against, and the test that the optimum held still meanwhile.
+  // The optima of the fitness a swarm searches over the last forgetting time constant (t,
+  // optimum), every tenth of it: the references a method trailing the window is assessed against,
+  // and the test that the optimum held still meanwhile.
   struct RememberedOptimum {
     double t;
-    ParameterVector optimum, relative_std;
+    ParameterVector optimum;
   };
   std::deque<RememberedOptimum> recent_optima_;
   double last_remembered_t_ = -std::numeric_limits<double>::infinity();  // [s]
-  /// Files a consistent fit's optimum among the recent ones and drops those older than the horizon.
-  void rememberOptimum(const FitCheck& fit);
-  /// The remembered optima of the last time constant before now, those of its last half marked as
+  /// Files the searched fitness's optimum now among the recent ones, dropping those older than the
+  /// forgetting time constant.
+  void rememberSearchedOptimum();
+  /// The searched fitness's optimum now (none before the swarm's sums exist).
+  std::optional<ParameterVector> searchedOptimum() const;
+  /// It now and those remembered over the last time constant, those of its last half marked as
   /// references (none for a method that does not trail the window, or where this fit is not consistent).
-  std::vector<RecentOptimum> recentOptima(const FitCheck& fit) const;
+  std::optional<TrailedOptima> trailedOptima(const FitCheck& fit) const;
   ParameterVector slow_lag_{};  // |x(t) - x(t - tau)| / x: the window's lag behind a changing value [-]
   OperatingPoint operating_point_;         // exponentially forgotten means, as the fitness window
   double variance_i_d_ = 0.0, variance_i_q_ = 0.0;  // and the currents' variances (the spreads, when read)

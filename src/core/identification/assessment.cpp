@@ -607,7 +607,7 @@ InverterAssessment assessInverter(const FitCheck& fit, const AssessmentSettings&
 }
 
 Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::array<bool, kParameterCount>& at_bound,
-                  const AssessmentSettings& a, const std::vector<RecentOptimum>& recent) {
+                  const AssessmentSettings& a, const TrailedOptima* trailed) {
   Assessment out;
   out.relative_uncertainty.fill(std::numeric_limits<double>::infinity());
   const double limit = a.max_relative_uncertainty;
@@ -640,31 +640,30 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
     }
     const double statistical = a.confidence_sigmas * fit.relative_std[p];
     // The value is right within the current optimum's statistical part plus its distance to any
-    // one of the data's optima of the last moments (a method trailing the window), as long as the
-    // parameter held still meanwhile. The new data's share r moves the optimum by about
-    // std sqrt(r (1 + r)) by noise alone; an optimum of the last time constant further than twice
-    // that from the current one shows a change (a drift, a step), and then only the current one
-    // counts.
+    // one of the optima of the last moments of the fitness it searches (a swarm trailing the
+    // window), as long as the parameter held still meanwhile. The new data's share r moves the
+    // optimum by about std sqrt(r (1 + r)) by noise alone; an optimum of the last time constant
+    // further than twice that from the one now shows a change (a drift, a step), and then only the
+    // data's optimum counts.
     double distance = std::abs(v - fit.optimum[p]) / std::abs(v);
-    double reference_statistical = statistical, reference_age = 0.0;
-    bool still = std::isfinite(fit.relative_std[p]);
-    for (const RecentOptimum& r : recent) {
-      const double moved = std::abs(r.optimum[p] - fit.optimum[p]) / std::abs(v);
+    double reference_age = 0.0;
+    const std::vector<RecentOptimum> none;
+    const std::vector<RecentOptimum>& earlier = trailed ? trailed->earlier : none;
+    bool still = std::isfinite(fit.relative_std[p]) && trailed && std::isfinite(trailed->now[p]);
+    for (const RecentOptimum& r : earlier) {
+      const double moved = std::abs(r.optimum[p] - trailed->now[p]) / std::abs(v);
       still = still && moved <= 2.0 * fit.relative_std[p] * std::sqrt(r.renewed * (1.0 + r.renewed));
     }
-    for (const RecentOptimum& r : recent) {
+    for (const RecentOptimum& r : earlier) {
       if (!still || !r.reference) continue;
-      const double s = std::max(statistical, a.confidence_sigmas * r.relative_std[p]);
       const double d = std::abs(v - r.optimum[p]) / std::abs(v);
-      if (std::isfinite(s) && std::isfinite(d) &&
-          std::max(s + d, a.min_relative_uncertainty) < std::max(reference_statistical + distance, a.min_relative_uncertainty)) {
-        reference_statistical = s;
+      if (std::isfinite(statistical) && d < distance) {
         distance = d;
         reference_age = r.age;
       }
     }
     const double crossing = p == kLd ? fit.crossing_floor : 0.0;
-    out.relative_uncertainty[p] = std::max(reference_statistical + distance, a.min_relative_uncertainty) +
+    out.relative_uncertainty[p] = std::max(statistical + distance, a.min_relative_uncertainty) +
                                   fit.sampling_floor + crossing + fit.model_floor[p];
     if (!fit.consistent) {
       st = ParameterStatus::PoorFit;
@@ -715,14 +714,14 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
       // Which part of the stated uncertainty is too large: the method's distance from the data's
       // optimum (not converged), or what the data allow (not excited).
       const std::string parts =
-          format("stated +-%.3g %% = statistical +-%.3g %%", 100 * out.relative_uncertainty[p], 100 * reference_statistical) +
+          format("stated +-%.3g %% = statistical +-%.3g %%", 100 * out.relative_uncertainty[p], 100 * statistical) +
           format(" + distance to the data's optimum %.3g %%", 100 * distance) +
           (reference_age > 0 ? format(" (its optimum %.3g ms ago)", 1e3 * reference_age) : std::string()) +
           (fit.sampling_floor > 0 ? format(" + sampling +-%.3g %%", 100 * fit.sampling_floor) : std::string()) +
           (crossing > 0 ? format(" + zero crossings within a period +-%.3g %%", 100 * crossing) : std::string()) +
           (fit.model_floor[p] > 0 ? format(" + the inverter model's own error +-%.3g %%", 100 * fit.model_floor[p]) : std::string()) +
           format(" (need %.3g %%)", 100 * limit);
-      const bool method_is_off = distance > std::max(reference_statistical, a.min_relative_uncertainty);
+      const bool method_is_off = distance > std::max(statistical, a.min_relative_uncertainty);
       st = method_is_off ? ParameterStatus::NotConverged : ParameterStatus::NotExcited;
       why = parts;
       if (!method_is_off) {  // what would narrow it

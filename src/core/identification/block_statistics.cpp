@@ -923,6 +923,20 @@ WindowSums BlockStatistics::window() const {
   return w;
 }
 
+WindowSums BlockStatistics::searchedWindow() const {
+  WindowSums w;
+  if (weight_ <= 0 || crossSaturationSet()) return w;
+  const auto [d, q] = fitnessSums();
+  const double weight = fitnessWeight();
+  if (!(weight > 0)) return w;
+  w.mean_d = ProductD(d.selfadjointView<Eigen::Upper>()) / weight;
+  w.mean_q = ProductQ(q.selfadjointView<Eigen::Upper>()) / weight;
+  w.weight = weight_;
+  w.block_duration = blockDuration();
+  w.block_samples = block_samples_;
+  return w;
+}
+
 WindowSums BlockStatistics::windowOf(const ProductD& d, const ProductQ& q, const OffsetProduct& N, const OffsetCrossD& C_d,
                                      const OffsetCrossQ& C_q, double weight) const {
   WindowSums w;

@@ -594,14 +594,7 @@ SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status
     refreshSearchBox();
   } else if (box_.valid && trailsWindowOptimum() &&
              !(last_t_ - last_remembered_t_ < 0.1 * stats_.forgettingTimeConstant() && last_t_ >= last_remembered_t_)) {
-    // Between the refreshes, the window's optimum every tenth of its time constant: the references
-    // a method that trails it is assessed against (estimate()). From the data alone, whether or
-    // not estimates are asked for.
-    const ParameterVector& start = recent_optima_.empty() ? box_.centre : recent_optima_.back().optimum;
-    const FitCheck fit = checkFit(stats_, config_.assessment, start, false, config_.inverter.estimate_voltage,
-                                  stats_.inverterVoltage(), config_.magnetics.cross_saturation);
-    if (fit.consistent) rememberOptimum(fit);
-    else last_remembered_t_ = last_t_;  // tried: the next in a tenth of the time constant
+    rememberSearchedOptimum();
   }
   // The drive model, where nothing about the drive was declared: watched at the same pace (before
   // the box exists too: a real drive's data may never give the paper's model a scale).
@@ -733,7 +726,6 @@ bool OnlineIdentifier::refreshSearchBox() {
     watched_optimum_ = fit.optimum;
     have_watched_ = true;
   }
-  if (fit.consistent) rememberOptimum(fit);
   const double inner = std::sqrt(config_.search.span_factor);
   ParameterVector centre = box_.centre;
   bool moved = false;
@@ -756,23 +748,45 @@ bool OnlineIdentifier::refreshSearchBox() {
   return true;
 }
 
-void OnlineIdentifier::rememberOptimum(const FitCheck& fit) {
-  if (!fit.available) return;
+std::optional<ParameterVector> OnlineIdentifier::searchedOptimum() const {
+  // The exact optimum of the fitness the swarm searches: the paper's model on its sums, a
+  // Gauss-Newton fit of four parameters warm-started from the last one; a parameter the window
+  // leaves undetermined is NaN.
+  const WindowSums window = stats_.searchedWindow();
+  if (!window.hasBlocks()) return std::nullopt;
+  const ParameterVector& previous = recent_optima_.empty() ? box_.centre : recent_optima_.back().optimum;
+  Eigen::VectorXd start(kParameterCount);
+  for (int p = 0; p < kParameterCount; ++p) start(p) = std::isfinite(previous[p]) ? previous[p] : box_.centre[p];
+  const BlockFit f = BlockLeastSquares::fit(window, LinearBlockModel::paper(), start, {}, config_.assessment.variance_inflation);
+  if (!f.ok) return std::nullopt;
+  ParameterVector optimum;
+  for (int p = 0; p < kParameterCount; ++p)
+    optimum[p] = f.determined[static_cast<std::size_t>(p)] ? f.beta(p) : std::numeric_limits<double>::quiet_NaN();
+  return optimum;
+}
+
+void OnlineIdentifier::rememberSearchedOptimum() {
+  // Every tenth of the window's time constant, from the data alone (whether or not estimates are
+  // asked for).
+  last_remembered_t_ = last_t_;
+  const std::optional<ParameterVector> optimum = searchedOptimum();
+  if (!optimum) return;
   const double horizon = stats_.forgettingTimeConstant();
   while (!recent_optima_.empty() && (recent_optima_.front().t < last_t_ - horizon || recent_optima_.front().t > last_t_))
     recent_optima_.pop_front();
-  if (!recent_optima_.empty() && recent_optima_.back().t == last_t_) recent_optima_.pop_back();
-  recent_optima_.push_back({last_t_, fit.optimum, fit.relative_std});
-  last_remembered_t_ = last_t_;
+  recent_optima_.push_back({last_t_, *optimum});
 }
 
-std::vector<RecentOptimum> OnlineIdentifier::recentOptima(const FitCheck& fit) const {
-  std::vector<RecentOptimum> out;
-  if (!fit.consistent || !trailsWindowOptimum()) return out;
+std::optional<TrailedOptima> OnlineIdentifier::trailedOptima(const FitCheck& fit) const {
+  if (!fit.consistent || !trailsWindowOptimum() || !box_.valid) return std::nullopt;
+  const std::optional<ParameterVector> now = searchedOptimum();
+  if (!now) return std::nullopt;
+  TrailedOptima out;
+  out.now = *now;
   const double tau = stats_.forgettingTimeConstant();
   for (const RememberedOptimum& r : recent_optima_)
     if (r.t < last_t_ && last_t_ - r.t <= tau)
-      out.push_back({last_t_ - r.t, 1.0 - std::exp(-(last_t_ - r.t) / tau), last_t_ - r.t <= 0.5 * tau, r.optimum, r.relative_std});
+      out.earlier.push_back({last_t_ - r.t, 1.0 - std::exp(-(last_t_ - r.t) / tau), last_t_ - r.t <= 0.5 * tau, r.optimum});
   return out;
 }
 
@@ -864,11 +878,11 @@ Estimate OnlineIdentifier::estimate() const {
     fit.likely_cause = buf;
     fit.likely_cause_kind = MisfitCause::Unit;
   }
-  const std::vector<RecentOptimum> recent = recentOptima(fit);
+  const std::optional<TrailedOptima> trailed = trailedOptima(fit);
   e.fit = fit;
   e.drive_model = drive_model_note_.empty() || angle_note_.empty() ? drive_model_note_ + angle_note_
                                                                     : drive_model_note_ + "; " + angle_note_;
-  const Assessment a = assess(e.parameters, e.fit, atBound(), config_.assessment, recent);
+  const Assessment a = assess(e.parameters, e.fit, atBound(), config_.assessment, trailed ? &*trailed : nullptr);
   const InverterAssessment inv = assessInverter(e.fit, config_.assessment, config_.inverter.max_relative_uncertainty);
   e.inverter_voltage = e.fit.inverter_modelled ? e.fit.inverter_voltage : std::numeric_limits<double>::quiet_NaN();
   e.inverter_status = inv.status;
