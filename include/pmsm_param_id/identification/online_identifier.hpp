@@ -5,10 +5,10 @@
 #pragma once
 #include <cstdint>
 #include <deque>
+#include <optional>
 #include <utility>
 #include <limits>
 #include <memory>
-#include <optional>
 #include <string>
 #include <vector>
 

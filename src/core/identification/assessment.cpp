@@ -657,7 +657,7 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
     for (const RecentOptimum& r : earlier) {
       if (!still || !r.reference) continue;
       const double d = std::abs(v - r.optimum[p]) / std::abs(v);
-      if (std::isfinite(statistical) && d < distance) {
+      if (d < distance) {
         distance = d;
         reference_age = r.age;
       }
