@@ -79,8 +79,8 @@ TEST(InverterEdges, ExplainsTheSwitchingSimulatorsErrorTwiceAsWellAsTheSmoothSha
   // exact sensors: each period's error voltage (the ideal inverter's mean vector minus the applied
   // one) against the edge model fed the period's vector, the true inductances, V_dc t_dead and the
   // sampled currents, and against the smooth shape tanh(i / w) at the mid-period current, best of
-  // the widths tried. Measured: the edges leave 0.39 V RMS of a 16.3 V error, the smooth shape
-  // 0.87 V at its best width; the edges' V is 12.27 V against V_dc t_dead / T_s + v_on = 12.3 V.
+  // the widths tried. Measured: the edges leave 0.36 V RMS of a 16.3 V error, the smooth shape
+  // 0.88 V at its best width; the edges' V is 12.28 V against V_dc t_dead / T_s + v_on = 12.3 V.
   Scenario s = test_helpers::scenario("industrial_pwm.yaml");
   s.sensors = {};
   s.duration = 0.6;

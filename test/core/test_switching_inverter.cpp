@@ -96,6 +96,28 @@ TEST(SwitchingInverter, DeadTimeFollowsTheActualCurrentNotTheSampledOne) {
   EXPECT_LT(light_loss, loaded_loss);
 }
 
+TEST(SwitchingInverter, ACurrentTheDeadTimeDrivesThroughZeroStaysThereAtAnyStepSize) {
+  // The robot joint (48 V, 40/60 uH, 0.75 us): within one dead time the current moves about 0.5 A,
+  // so near the ripple's zero crossings a dead leg's diode drives its current to zero, and where
+  // the other diode would drive it back neither conducts: it stays at zero until the switch turns
+  // on. Located as an event, the period's applied voltage is the same with 10 integration steps
+  // per period as with 400: measured 0.26 % of the error voltage's RMS apart. (The sign taken at
+  // each Runge-Kutta stage instead averaged the two diodes across the crossing: 4.6 % apart.)
+  Scenario s = scenario("robot_joint_pwm.yaml");
+  s.sensors = {};
+  s.duration = 0.1;
+  Scenario fine = s;
+  fine.drive.integration_substeps = 400;
+  const auto coarse_run = run(s), fine_run = run(fine);
+  double difference = 0, error = 0;
+  for (std::size_t k = 0; k < coarse_run.size(); ++k) {
+    const SimulatedSample &a = coarse_run[k], &b = fine_run[k];
+    difference += std::pow(a.u_d_applied - b.u_d_applied, 2) + std::pow(a.u_q_applied - b.u_q_applied, 2);
+    error += std::pow(b.u_d_applied - b.u_d_ideal, 2) + std::pow(b.u_q_applied - b.u_q_ideal, 2);
+  }
+  EXPECT_LT(std::sqrt(difference / error), 0.01);
+}
+
 TEST(TimingConventions, AnglePredictionTurnsTheAppliedVectorByItsMismatch) {
   // Average model, no inverter error, exact angle: the voltage computed at t_k acts over
   // [t_k+1, t_k+2) turned at theta_k + k_p omega_e T_s and held in the stator frame. Its mean in the

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 #include <vector>
 
 namespace pmsm_param_id {
@@ -231,6 +232,11 @@ SimulatedSample DriveSimulator::step() {
                                            breaks.begin());
   }
   std::array<LegState, 3> legs_now{kLow, kLow, kLow};  // the legs' states in the segment being integrated
+  // Within a dead time: each dead leg's freewheeling diode (high: the upper one, for a negative
+  // current), and the pole voltage of a leg whose current has been driven to zero and is held there
+  // (NaN: none; doc/simulator.md "switching-level PWM").
+  std::array<bool, 3> dead_high{};
+  std::array<double, 3> pinned_pole{NAN, NAN, NAN};
   const double v_on = inv.device_drop;
   // The rotor-frame hold's vector is the same all period (its angle is the period's start).
   const Vec2 held_at_start = rotate(stator, -theta_start);
@@ -243,7 +249,11 @@ SimulatedSample DriveSimulator::step() {
       for (std::size_t k = 0; k < 3; ++k) {
         const double sgn = i[k] > 0 ? 1.0 : (i[k] < 0 ? -1.0 : 0.0);
         LegState st = legs_now[k];
-        if (st == kDead) st = sgn > 0 ? kLow : kHigh;  // the freewheeling diode of the current's sign
+        if (st == kDead && std::isfinite(pinned_pole[k])) {  // no current: no diode conducts, no drop
+          pole[k] = pinned_pole[k];
+          continue;
+        }
+        if (st == kDead) st = dead_high[k] ? kHigh : kLow;  // the diode that carries the current
         pole[k] = (st == kHigh ? v_dc : 0.0) - v_on * sgn;
       }
       return rotate(clarke(pole[0], pole[1], pole[2]), park);  // the zero sequence drops out
@@ -261,17 +271,6 @@ SimulatedSample DriveSimulator::step() {
   // each segment between switching instants in steps no longer than those.
   const int n = s.drive.integration_substeps;
   const double h_max = Ts / n;
-  // forEachStep(f): f(h) for each step in order, with legs_now set to the legs' states in it.
-  const auto forEachStep = [&](const auto& f) {
-    for (std::size_t b = 0; b + 1 < break_count; ++b) {
-      const double length = breaks[b + 1] - breaks[b];
-      if (!(length > 0)) continue;
-      const int m = std::max(1, static_cast<int>(std::ceil(length / h_max - 1e-9)));
-      const double mid = 0.5 * (breaks[b] + breaks[b + 1]);
-      legs_now = {legs[0].at(mid), legs[1].at(mid), legs[2].at(mid)};
-      for (int j = 0; j < m; ++j) f(length / m);
-    }
-  };
 
   // Plant over [t, t + Ts]: classical RK4 with the applied voltage evaluated at every stage.
   // The period's mean applied voltage and the held vector's (what an inverter without error applies),
@@ -296,6 +295,81 @@ SimulatedSample DriveSimulator::step() {
     applied_q += w * (stage_u[0].y + 2 * stage_u[1].y + 2 * stage_u[2].y + stage_u[3].y);
     ideal.x += w * (stage_ideal[0].x + 2 * stage_ideal[1].x + 2 * stage_ideal[2].x + stage_ideal[3].x);
     ideal.y += w * (stage_ideal[0].y + 2 * stage_ideal[1].y + 2 * stage_ideal[2].y + stage_ideal[3].y);
+  };
+  // forEachStep(f, save, load, phases): f(h) for each step in order, with legs_now set to the legs'
+  // states in it; save() and load() keep and restore the plant's state, phases() its phase currents.
+  // In a dead time each dead leg's diode is the one its current's sign at the segment's start
+  // chooses. A current that the diode's voltage drives through zero is located (linear
+  // interpolation over the step, then integrated up to it); there the other diode takes over,
+  // unless its voltage drives the current back: then neither conducts, the current stays at zero
+  // and the pole floats to the voltage that holds it there (found from the current's slope with
+  // the pole low and high, by two probing steps), until the switch turns on.
+  const auto steps = [&](const auto& f, double length) {
+    const int m = std::max(1, static_cast<int>(std::ceil(length / h_max - 1e-9)));
+    for (int j = 0; j < m; ++j) f(length / m);
+  };
+  const auto forEachStep = [&](const auto& f, const auto& save, const auto& load, const auto& phases) {
+    for (std::size_t b = 0; b + 1 < break_count; ++b) {
+      const double length = breaks[b + 1] - breaks[b];
+      if (!(length > 0)) continue;
+      const double mid = 0.5 * (breaks[b] + breaks[b + 1]);
+      legs_now = {legs[0].at(mid), legs[1].at(mid), legs[2].at(mid)};
+      if (legs_now[0] != kDead && legs_now[1] != kDead && legs_now[2] != kDead) {
+        steps(f, length);
+        continue;
+      }
+      pinned_pole.fill(std::numeric_limits<double>::quiet_NaN());
+      const std::array<double, 3> i_start = phases();
+      for (std::size_t k = 0; k < 3; ++k) dead_high[k] = i_start[k] < 0;
+      double done = 0.0;
+      for (int event = 0; event < 8 && done < length; ++event) {
+        const double rest = length - done;
+        const auto at_start = save();
+        const double acc_d = applied_d, acc_q = applied_q;
+        const Vec2 acc_ideal = ideal;
+        const std::array<double, 3> ia = phases();
+        steps(f, rest);
+        const std::array<double, 3> ib = phases();
+        double first = 2.0;  // the earliest crossing, as a share of the rest
+        std::size_t leg = 3;
+        for (std::size_t k = 0; k < 3; ++k) {
+          if (legs_now[k] != kDead || std::isfinite(pinned_pole[k])) continue;
+          if (dead_high[k] ? !(ib[k] > 0) : !(ib[k] < 0)) continue;
+          const double share = ia[k] == ib[k] ? 0.0 : std::clamp(ia[k] / (ia[k] - ib[k]), 0.0, 1.0);
+          if (share < first) first = share, leg = k;
+        }
+        if (leg == 3) break;  // no crossing: the rest is done
+        load(at_start);
+        applied_d = acc_d, applied_q = acc_q, ideal = acc_ideal;
+        if (first * rest > 0) steps(f, first * rest);
+        done += first * rest;
+        // At zero: the current's slope with the pole low and with it high (held, as no diode conducts).
+        const double probe = 1e-3 * std::max(rest, 1e-9);
+        double slope[2];
+        const auto at_zero = save();
+        const double zero_d = applied_d, zero_q = applied_q;
+        const Vec2 zero_ideal = ideal;
+        for (int high = 0; high < 2; ++high) {
+          pinned_pole[leg] = high ? v_dc : 0.0;
+          const double before = phases()[leg];
+          f(probe);
+          slope[high] = (phases()[leg] - before) / probe;
+          load(at_zero);
+          applied_d = zero_d, applied_q = zero_q, ideal = zero_ideal;
+        }
+        pinned_pole[leg] = std::numeric_limits<double>::quiet_NaN();
+        // It crossed from the old diode's sign; the other diode keeps it going unless its slope turns it back.
+        const bool now_negative = !dead_high[leg];  // was low (positive current), now below zero
+        const double s_new = slope[now_negative ? 1 : 0];
+        if ((now_negative && s_new > 0) || (!now_negative && s_new < 0)) {
+          const double s_lo = slope[0], s_hi = slope[1];
+          pinned_pole[leg] = s_hi != s_lo ? std::clamp(-s_lo / (s_hi - s_lo), 0.0, 1.0) * v_dc : 0.5 * v_dc;
+        } else {
+          dead_high[leg] = now_negative;
+        }
+      }
+      pinned_pole.fill(std::numeric_limits<double>::quiet_NaN());
+    }
   };
   if (s.saturation.enabled) {
     // Saturating magnetics: the flux linkages are the state (the currents follow from them at each
@@ -331,7 +405,8 @@ SimulatedSample DriveSimulator::step() {
       currentsFromFlux(plant, s.saturation, y.psi_d, y.psi_q, x_.i_d, x_.i_q);
       x_.omega_m = y.omega_m;
       x_.theta_e = y.theta_e;
-    });
+    }, [&] { return std::make_pair(y, x_); }, [&](const std::pair<State, PlantState>& z) { y = z.first, x_ = z.second; },
+       [&] { return phaseFromDq(x_.i_d, x_.i_q, x_.theta_e); });
   } else {
     const auto derivative = [&](const PlantState& x) {
       const Vec2 u = voltageAt(x);
@@ -352,7 +427,7 @@ SimulatedSample DriveSimulator::step() {
       x_.i_q += h / 6 * (k1.di_q + 2 * k2.di_q + 2 * k3.di_q + k4.di_q);
       x_.omega_m += h / 6 * (k1.domega_m + 2 * k2.domega_m + 2 * k3.domega_m + k4.domega_m);
       x_.theta_e += h / 6 * (k1.dtheta_e + 2 * k2.dtheta_e + 2 * k3.dtheta_e + k4.dtheta_e);
-    });
+    }, [&] { return x_; }, [&](const PlantState& z) { x_ = z; }, [&] { return phaseFromDq(x_.i_d, x_.i_q, x_.theta_e); });
   }
   out.u_d_applied = applied_d;
   out.u_q_applied = applied_q;
