@@ -39,4 +39,17 @@ struct InverterEdgePeriod {
 std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& period, const std::array<double, 3>& i_start,
                                         const std::array<double, 3>& i_end);
 
+/// The same, replayed: with the bus voltage, the period is followed segment by segment between the
+/// legs' switching instants, each phase current moving at its slope (the chord's plus L^-1 times the
+/// legs' vector less the period's mean) for the legs' states; a dead leg's diode is the one its
+/// current's sign chooses, a current a diode drives to zero within the dead time is taken over by the
+/// other diode or, where that one would drive it back, held at zero with its pole floating to the
+/// voltage that holds it (one held leg at a time); the period's mean vector, which the slopes are
+/// measured from and which the losses move, is solved for by Broyden's method to 1e-7 of the dead
+/// time's voltage (one replay where no current comes near zero; at most 40). Exact for currents that
+/// follow the chord's slope and the ripple; the width is not used. Without the bus voltage:
+/// inverterEdgeShape.
+std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& period, const std::array<double, 3>& i_start,
+                                         const std::array<double, 3>& i_end);
+
 }  // namespace pmsm_param_id

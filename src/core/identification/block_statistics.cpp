@@ -259,7 +259,9 @@ Vec2 BlockStatistics::edgeShapeIntegral(const Cumulative& p, const std::array<do
   e.L_q = edge_L_q_;
   e.rotor = mid;
   e.width = settings_.inverter_zero_crossing_current;
-  const std::array<double, 3> m = inverterEdgeShape(e, i_start, i_end);
+  // With the bus voltage the period is replayed edge by edge (exact for the chord's currents);
+  // without it, the edges' first-order model with the zero-crossing width.
+  const std::array<double, 3> m = inverterEdgeReplay(e, i_start, i_end);
   const Vec2 v = rotate(clarke(m[0], m[1], m[2]), conjugate(mid));  // into the rotor frame at mid-period
   return {dt * v.x, dt * v.y};
 }

@@ -185,4 +185,152 @@ std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& in, const std:
   return out;
 }
 
+std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std::array<double, 3>& i_start,
+                                         const std::array<double, 3>& i_end) {
+  const double T = in.period, V = in.bus_voltage;
+  const double t_d = std::isfinite(V) && V > 0 ? std::max(0.0, in.dead_volt_seconds) / V : 0.0;
+  const double S = 0.5 * (in.L_d + in.L_q), D = 0.5 * (in.L_d - in.L_q);
+  const double det = S * S - D * D;
+  if (!(t_d > 0 && T > 0 && S > 0 && det > 0)) return inverterEdgeShape(in, i_start, i_end);
+  const std::array<double, 3> v = inverseClarke(in.voltage);
+  const double v0 = -0.5 * (std::max({v[0], v[1], v[2]}) + std::min({v[0], v[1], v[2]}));
+  std::array<double, 3> rise{}, fall{}, fund{};
+  std::array<int, 3> fixed{};
+  std::array<double, 14> breaks{};
+  std::size_t nb = 0;
+  breaks[nb++] = 0.0;
+  breaks[nb++] = T;
+  for (std::size_t k = 0; k < 3; ++k) {
+    const double duty = 0.5 + (v[k] + v0) / V;
+    fund[k] = (i_end[k] - i_start[k]) / T;
+    if (!(duty > 0.0 && duty < 1.0)) {
+      fixed[k] = duty >= 1.0 ? 1 : 0;
+      continue;
+    }
+    fixed[k] = -1;
+    rise[k] = 0.5 * T * (1.0 - duty);
+    fall[k] = T - rise[k];
+    for (double b : {rise[k], rise[k] + t_d, fall[k], fall[k] + t_d})
+      if (b > 0.0 && b < T) breaks[nb++] = b;
+  }
+  std::sort(breaks.begin(), breaks.begin() + static_cast<std::ptrdiff_t>(nb));
+  const double c2 = in.rotor.c * in.rotor.c - in.rotor.s * in.rotor.s, s2 = 2.0 * in.rotor.s * in.rotor.c;
+  const double i00 = (S - D * c2) / det, i01 = -D * s2 / det, i11 = (S + D * c2) / det;
+  double row[3][2];
+  for (std::size_t k = 0; k < 3; ++k) {
+    row[k][0] = kRow[k][0] * i00 + kRow[k][1] * i01;
+    row[k][1] = kRow[k][0] * i01 + kRow[k][1] * i11;
+  }
+  std::array<double, 3> own{};
+  for (std::size_t k = 0; k < 3; ++k) {
+    std::array<double, 3> e{};
+    e[k] = 1.0;
+    const Vec2 u = clarke(e[0], e[1], e[2]);
+    own[k] = row[k][0] * u.x + row[k][1] * u.y;
+  }
+  std::array<double, 3> out{};
+  for (std::size_t k = 0; k < 3; ++k) {
+    const double mean = 0.5 * (i_start[k] + i_end[k]);
+    out[k] = fixed[k] >= 0 ? 0.0 : (mean > 0 ? 1.0 : -1.0);
+  }
+  const double dead_volts = in.dead_volt_seconds / T;
+  const auto replay = [&](Vec2 mean) {
+    std::array<double, 3> i = i_start, volt_seconds{};
+    std::array<bool, 3> pinned{};
+    const auto slopesFor = [&](const std::array<double, 3>& p, std::array<double, 3>& s) {
+      const Vec2 u = clarke(p[0], p[1], p[2]);
+      for (std::size_t k = 0; k < 3; ++k) s[k] = fund[k] + row[k][0] * (u.x - mean.x) + row[k][1] * (u.y - mean.y);
+    };
+    for (std::size_t b = 0; b + 1 < nb; ++b) {
+      double t = breaks[b];
+      const double t1 = breaks[b + 1];
+      if (!(t1 > t)) continue;
+      const double middle = 0.5 * (t + t1);
+      std::array<int, 3> state{};
+      for (std::size_t k = 0; k < 3; ++k) {
+        if (fixed[k] >= 0) state[k] = fixed[k];
+        else if (middle < rise[k]) state[k] = 0;
+        else if (middle < rise[k] + t_d) state[k] = 2;
+        else if (middle < fall[k]) state[k] = 1;
+        else if (middle < fall[k] + t_d) state[k] = 2;
+        else state[k] = 0;
+        if (state[k] != 2) pinned[k] = false;
+      }
+      for (int guard = 0; guard < 8 && t < t1; ++guard) {
+        std::array<double, 3> pole{};
+        for (std::size_t k = 0; k < 3; ++k)
+          pole[k] = state[k] == 2 ? (pinned[k] ? 0.5 * V : (i[k] > 0 ? 0.0 : V)) : (state[k] == 1 ? V : 0.0);
+        std::array<double, 3> slope{};
+        for (std::size_t k = 0; k < 3; ++k) {
+          if (state[k] != 2 || pinned[k] || i[k] != 0.0) continue;
+          std::array<double, 3> s_lo{}, s_hi{};
+          pole[k] = 0.0;
+          slopesFor(pole, s_lo);
+          pole[k] = V;
+          slopesFor(pole, s_hi);
+          if (s_lo[k] > 0) pole[k] = 0.0, i[k] = 1e-15;
+          else if (s_hi[k] < 0) i[k] = -1e-15;
+          else pinned[k] = true, pole[k] = 0.5 * V;
+        }
+        slopesFor(pole, slope);
+        for (std::size_t k = 0; k < 3; ++k)
+          if (state[k] == 2 && pinned[k] && own[k] != 0) {
+            pole[k] = std::clamp(pole[k] - slope[k] / own[k], 0.0, V);
+            slopesFor(pole, slope);
+          }
+        double step = t1 - t;
+        std::size_t crossing = 3;
+        for (std::size_t k = 0; k < 3; ++k) {
+          if (state[k] != 2 || pinned[k] || i[k] == 0.0 || i[k] * slope[k] >= 0) continue;
+          const double to_zero = -i[k] / slope[k];
+          if (to_zero < step) step = to_zero, crossing = k;
+        }
+        for (std::size_t k = 0; k < 3; ++k) {
+          i[k] += slope[k] * step;
+          volt_seconds[k] += pole[k] * step;
+        }
+        t += step;
+        if (crossing < 3) i[crossing] = 0.0;
+      }
+    }
+    std::array<double, 3> losses{};
+    for (std::size_t k = 0; k < 3; ++k)
+      losses[k] = fixed[k] >= 0 ? 0.0 : (V * (fall[k] - rise[k]) - volt_seconds[k]) / in.dead_volt_seconds;
+    return losses;
+  };
+  // The period's mean vector is the commanded one less the losses' image, and the losses follow
+  // from it: a root of r(m) = commanded - dead_volts clarke(replay(m)) - m in two dimensions,
+  // piecewise linear in m (the events move linearly with it). Broyden's method from the fixed-point
+  // step (its first step); one replay where the first guess holds.
+  const auto meanOf = [&](const std::array<double, 3>& losses) {
+    const Vec2 e = clarke(losses[0], losses[1], losses[2]);
+    return Vec2{in.voltage.x - dead_volts * e.x, in.voltage.y - dead_volts * e.y};
+  };
+  Vec2 m = meanOf(out);
+  out = replay(m);
+  Vec2 r{meanOf(out).x - m.x, meanOf(out).y - m.y};
+  double H[2][2] = {{1.0, 0.0}, {0.0, 1.0}};  // minus the inverse Jacobian of r
+  const double tolerance = 1e-7 * dead_volts;
+  for (int pass = 1; pass < 40 && std::hypot(r.x, r.y) > tolerance; ++pass) {
+    const Vec2 dm{H[0][0] * r.x + H[0][1] * r.y, H[1][0] * r.x + H[1][1] * r.y};
+    m = {m.x + dm.x, m.y + dm.y};
+    out = replay(m);
+    const Vec2 next = meanOf(out);
+    const Vec2 r_new{next.x - m.x, next.y - m.y};
+    const Vec2 dr{r_new.x - r.x, r_new.y - r.y};
+    // Broyden's ("good") update of J^-1, J the Jacobian of r, kept as H = -J^-1:
+    // J^-1 += (dm - J^-1 dr) dm^T J^-1 / (dm^T J^-1 dr).
+    const double Jdr[2] = {-(H[0][0] * dr.x + H[0][1] * dr.y), -(H[1][0] * dr.x + H[1][1] * dr.y)};
+    const double dmJ[2] = {-(dm.x * H[0][0] + dm.y * H[1][0]), -(dm.x * H[0][1] + dm.y * H[1][1])};
+    const double denominator = dm.x * Jdr[0] + dm.y * Jdr[1];
+    if (std::abs(denominator) > 1e-300) {
+      const double u0 = dm.x - Jdr[0], u1 = dm.y - Jdr[1];
+      for (int a = 0; a < 2; ++a)
+        for (int b = 0; b < 2; ++b) H[a][b] -= (a == 0 ? u0 : u1) * dmJ[b] / denominator;
+    }
+    r = r_new;
+  }
+  return out;
+}
+
 }  // namespace pmsm_param_id
