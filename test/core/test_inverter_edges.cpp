@@ -3,7 +3,9 @@
 // through every dead time with the actual current's sign and shares none of the model's algebra.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include "pmsm_param_id/identification/inverter_edges.hpp"
@@ -37,6 +39,41 @@ ShapeFit fitShape(const std::vector<Vec2>& error, const std::vector<Vec2>& shape
     syy += error[n].x * error[n].x + error[n].y * error[n].y;
   }
   return {sxy / sxx, std::sqrt(std::max(0.0, syy - sxy * sxy / sxx) / static_cast<double>(error.size()))};
+}
+
+// Each period of a simulated switching-level drive (exact sensors): its error voltage (the ideal
+// inverter's mean vector minus the applied one, rotor frame), the edge models' input (the period's
+// vector, the true inductances, V_dc t_dead) and the phase currents at its two samples.
+struct SimulatedPeriod {
+  Vec2 error;
+  InverterEdgePeriod period;
+  std::array<double, 3> i_start, i_end;
+  Phasor mid;
+  /// A shape's phase values as the rotor-frame vector the error is compared with.
+  Vec2 image(const std::array<double, 3>& m) const { return rotate(clarke(m[0], m[1], m[2]), conjugate(mid)); }
+};
+std::vector<SimulatedPeriod> periodsOf(const Scenario& s) {
+  const std::vector<SimulatedSample> data = test_helpers::run(s);
+  std::vector<SimulatedPeriod> out;
+  for (std::size_t n = 1; n + 1 < data.size(); ++n) {
+    const SimulatedSample& a = data[n];
+    const SimulatedSample& b = data[n + 1];
+    const double turn = std::remainder(b.sample.theta_e - a.sample.theta_e, 2 * M_PI);
+    SimulatedPeriod x;
+    x.mid = phasorOf(a.sample.theta_e + 0.5 * turn);
+    x.period.voltage = rotate(Vec2{a.u_d_ideal, a.u_q_ideal}, x.mid);
+    x.period.period = s.drive.sample_period;
+    x.period.dead_volt_seconds = s.drive.dc_bus_voltage * s.inverter.dead_time;
+    x.period.bus_voltage = s.drive.dc_bus_voltage;
+    x.period.L_d = s.motor.L_d;
+    x.period.L_q = s.motor.L_q;
+    x.period.rotor = x.mid;
+    x.i_start = phaseFromDq(a.i_d_true, a.i_q_true, a.sample.theta_e);
+    x.i_end = phaseFromDq(b.i_d_true, b.i_q_true, a.sample.theta_e + turn);
+    x.error = {a.u_d_ideal - a.u_d_applied, a.u_q_ideal - a.u_q_applied};
+    out.push_back(x);
+  }
+  return out;
 }
 }  // namespace
 
@@ -84,32 +121,16 @@ TEST(InverterEdges, ExplainsTheSwitchingSimulatorsErrorTwiceAsWellAsTheSmoothSha
   Scenario s = test_helpers::scenario("industrial_pwm.yaml");
   s.sensors = {};
   s.duration = 0.6;
-  const std::vector<SimulatedSample> data = test_helpers::run(s);
   std::vector<Vec2> error, edges;
   std::vector<std::vector<Vec2>> smooth(4);
   const double widths[4] = {0.025, 0.05, 0.1, 0.2};
-  for (std::size_t n = 1; n + 1 < data.size(); ++n) {
-    const SimulatedSample& a = data[n];
-    const SimulatedSample& b = data[n + 1];
-    const double turn = std::remainder(b.sample.theta_e - a.sample.theta_e, 2 * M_PI);
-    const Phasor mid = phasorOf(a.sample.theta_e + 0.5 * turn);
-    InverterEdgePeriod p;
-    p.voltage = rotate(Vec2{a.u_d_ideal, a.u_q_ideal}, mid);
-    p.period = s.drive.sample_period;
-    p.dead_volt_seconds = s.drive.dc_bus_voltage * s.inverter.dead_time;
-    p.bus_voltage = s.drive.dc_bus_voltage;
-    p.L_d = s.motor.L_d;
-    p.L_q = s.motor.L_q;
-    p.rotor = mid;
-    const std::array<double, 3> i_a = phaseFromDq(a.i_d_true, a.i_q_true, a.sample.theta_e);
-    const std::array<double, 3> i_b = phaseFromDq(b.i_d_true, b.i_q_true, a.sample.theta_e + turn);
-    const std::array<double, 3> m = inverterEdgeShape(p, i_a, i_b);
-    error.push_back({a.u_d_ideal - a.u_d_applied, a.u_q_ideal - a.u_q_applied});
-    edges.push_back(rotate(clarke(m[0], m[1], m[2]), conjugate(mid)));
+  for (const SimulatedPeriod& x : periodsOf(s)) {
+    error.push_back(x.error);
+    edges.push_back(x.image(inverterEdgeShape(x.period, x.i_start, x.i_end)));
     for (int w = 0; w < 4; ++w) {
       std::array<double, 3> t{};
-      for (int k = 0; k < 3; ++k) t[k] = std::tanh(0.5 * (i_a[k] + i_b[k]) / widths[w]);
-      smooth[w].push_back(rotate(clarke(t[0], t[1], t[2]), conjugate(mid)));
+      for (int k = 0; k < 3; ++k) t[k] = std::tanh(0.5 * (x.i_start[k] + x.i_end[k]) / widths[w]);
+      smooth[w].push_back(x.image(t));
     }
   }
   const ShapeFit edge_fit = fitShape(error, edges);
@@ -135,27 +156,11 @@ TEST(InverterEdges, TheReplayExplainsTheSwitchingSimulatorWhereCurrentsCrossZero
     s.sensors = {};
     s.inverter.device_drop = 0.0;
     s.duration = 0.6;
-    const std::vector<SimulatedSample> data = test_helpers::run(s);
     std::vector<Vec2> error, edges, replay;
-    for (std::size_t n = 1; n + 1 < data.size(); ++n) {
-      const SimulatedSample& a = data[n];
-      const SimulatedSample& b = data[n + 1];
-      const double turn = std::remainder(b.sample.theta_e - a.sample.theta_e, 2 * M_PI);
-      const Phasor mid = phasorOf(a.sample.theta_e + 0.5 * turn);
-      InverterEdgePeriod p;
-      p.voltage = rotate(Vec2{a.u_d_ideal, a.u_q_ideal}, mid);
-      p.period = s.drive.sample_period;
-      p.dead_volt_seconds = s.drive.dc_bus_voltage * s.inverter.dead_time;
-      p.bus_voltage = s.drive.dc_bus_voltage;
-      p.L_d = s.motor.L_d;
-      p.L_q = s.motor.L_q;
-      p.rotor = mid;
-      const std::array<double, 3> i_a = phaseFromDq(a.i_d_true, a.i_q_true, a.sample.theta_e);
-      const std::array<double, 3> i_b = phaseFromDq(b.i_d_true, b.i_q_true, a.sample.theta_e + turn);
-      const std::array<double, 3> m = inverterEdgeShape(p, i_a, i_b), r = inverterEdgeReplay(p, i_a, i_b);
-      error.push_back({a.u_d_ideal - a.u_d_applied, a.u_q_ideal - a.u_q_applied});
-      edges.push_back(rotate(clarke(m[0], m[1], m[2]), conjugate(mid)));
-      replay.push_back(rotate(clarke(r[0], r[1], r[2]), conjugate(mid)));
+    for (const SimulatedPeriod& x : periodsOf(s)) {
+      error.push_back(x.error);
+      edges.push_back(x.image(inverterEdgeShape(x.period, x.i_start, x.i_end)));
+      replay.push_back(x.image(inverterEdgeReplay(x.period, x.i_start, x.i_end)));
     }
     const ShapeFit by_edges = fitShape(error, edges), by_replay = fitShape(error, replay);
     const double V = s.drive.dc_bus_voltage * s.inverter.dead_time / s.drive.sample_period;
