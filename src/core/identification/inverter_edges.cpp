@@ -65,6 +65,22 @@ double smoothSign(double x, double width) {
 
 // The phases' rows of the inverse Clarke transform.
 constexpr double kRow[3][2] = {{1.0, 0.0}, {-0.5, 0.8660254037844386}, {-0.5, -0.8660254037844386}};
+
+/// Each phase's row of L^-1 in the stator frame at the period's rotor angle (a row of the inverse
+/// Clarke transform times L^-1, L = Sigma + Delta [[c2, s2], [s2, -c2]]): phase k's ripple for
+/// stator-frame volt-seconds lambda is row[k] . lambda. False where there is no inductance.
+bool phaseRows(const InverterEdgePeriod& in, double row[3][2]) {
+  const double S = 0.5 * (in.L_d + in.L_q), D = 0.5 * (in.L_d - in.L_q);
+  const double c2 = in.rotor.c * in.rotor.c - in.rotor.s * in.rotor.s, s2 = 2.0 * in.rotor.s * in.rotor.c;
+  const double det = S * S - D * D;
+  if (!(S > 0 && det > 0)) return false;
+  const double i00 = (S - D * c2) / det, i01 = -D * s2 / det, i11 = (S + D * c2) / det;
+  for (std::size_t k = 0; k < 3; ++k) {
+    row[k][0] = kRow[k][0] * i00 + kRow[k][1] * i01;
+    row[k][1] = kRow[k][0] * i01 + kRow[k][1] * i11;
+  }
+  return true;
+}
 }  // namespace
 
 std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& in, const std::array<double, 3>& i_start,
@@ -84,24 +100,14 @@ std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& in, const std:
     rise[k] = 0.5 * T * (1.0 - duty);
     fund[k] = (i_end[k] - i_start[k]) / T;
   }
-  // L^-1 in the stator frame at the rotor angle: L = Sigma + Delta [[c2, s2], [s2, -c2]].
-  const double S = 0.5 * (in.L_d + in.L_q), D = 0.5 * (in.L_d - in.L_q);
-  const double c2 = in.rotor.c * in.rotor.c - in.rotor.s * in.rotor.s, s2 = 2.0 * in.rotor.s * in.rotor.c;
-  const double det = S * S - D * D;
   std::array<double, 3> out{};
-  if (!(S > 0 && det > 0 && T > 0)) {  // no inductance: the sign of the period's mean current
+  double row[3][2], row_norm[3];
+  if (!(T > 0) || !phaseRows(in, row)) {  // no inductance: the sign of the period's mean current
     for (std::size_t k = 0; k < 3; ++k) out[k] = smoothSign(0.5 * (i_start[k] + i_end[k]), in.width);
     return out;
   }
-  // The ripple of phase k for stator-frame volt-seconds lambda: its row of L^-1 lambda.
-  // Its rows for the three phases (a row of the inverse Clarke transform times L^-1), once.
-  const double i00 = (S - D * c2) / det, i01 = -D * s2 / det, i11 = (S + D * c2) / det;
-  double row[3][2], row_norm[3];
-  for (std::size_t k = 0; k < 3; ++k) {
-    row[k][0] = kRow[k][0] * i00 + kRow[k][1] * i01;
-    row[k][1] = kRow[k][0] * i01 + kRow[k][1] * i11;
+  for (std::size_t k = 0; k < 3; ++k)
     row_norm[k] = std::sqrt(row[k][0] * row[k][0] + row[k][1] * row[k][1]);  // (sqrt, not hypot: finite values)
-  }
   const auto ripple = [&](std::size_t k, Vec2 lambda) { return row[k][0] * lambda.x + row[k][1] * lambda.y; };
   // Leg k's slope within a dead time with the legs in `high` and k itself low or high [A/s]; the
   // others' states are taken at the dead time's middle (at a low modulation the three legs switch
@@ -189,9 +195,8 @@ std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std
                                          const std::array<double, 3>& i_end) {
   const double T = in.period, V = in.bus_voltage;
   const double t_d = std::isfinite(V) && V > 0 ? std::max(0.0, in.dead_volt_seconds) / V : 0.0;
-  const double S = 0.5 * (in.L_d + in.L_q), D = 0.5 * (in.L_d - in.L_q);
-  const double det = S * S - D * D;
-  if (!(t_d > 0 && T > 0 && S > 0 && det > 0)) return inverterEdgeShape(in, i_start, i_end);
+  double row[3][2];
+  if (!(t_d > 0 && T > 0) || !phaseRows(in, row)) return inverterEdgeShape(in, i_start, i_end);
   const std::array<double, 3> v = inverseClarke(in.voltage);
   const double v0 = -0.5 * (std::max({v[0], v[1], v[2]}) + std::min({v[0], v[1], v[2]}));
   std::array<double, 3> rise{}, fall{}, fund{};
@@ -214,14 +219,7 @@ std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std
       if (b > 0.0 && b < T) breaks[nb++] = b;
   }
   std::sort(breaks.begin(), breaks.begin() + static_cast<std::ptrdiff_t>(nb));
-  const double c2 = in.rotor.c * in.rotor.c - in.rotor.s * in.rotor.s, s2 = 2.0 * in.rotor.s * in.rotor.c;
-  const double i00 = (S - D * c2) / det, i01 = -D * s2 / det, i11 = (S + D * c2) / det;
-  double row[3][2];
-  for (std::size_t k = 0; k < 3; ++k) {
-    row[k][0] = kRow[k][0] * i00 + kRow[k][1] * i01;
-    row[k][1] = kRow[k][0] * i01 + kRow[k][1] * i11;
-  }
-  std::array<double, 3> own{};
+  std::array<double, 3> own{};  // the pole's own coefficient in its phase's slope [A/s per V]
   for (std::size_t k = 0; k < 3; ++k) {
     std::array<double, 3> e{};
     e[k] = 1.0;
