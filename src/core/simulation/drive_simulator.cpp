@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -321,12 +322,16 @@ SimulatedSample DriveSimulator::step() {
       pinned_pole.fill(std::numeric_limits<double>::quiet_NaN());
       const std::array<double, 3> i_start = phases();
       for (std::size_t k = 0; k < 3; ++k) dead_high[k] = i_start[k] < 0;
+      // The plant's state with the period's sums so far: a step taken past a crossing is taken back whole.
+      const auto keep = [&] { return std::make_tuple(save(), applied_d, applied_q, ideal); };
+      const auto restore = [&](const auto& kept) {
+        load(std::get<0>(kept));
+        applied_d = std::get<1>(kept), applied_q = std::get<2>(kept), ideal = std::get<3>(kept);
+      };
       double done = 0.0;
       for (int event = 0; event < 8 && done < length; ++event) {
         const double rest = length - done;
-        const auto at_start = save();
-        const double acc_d = applied_d, acc_q = applied_q;
-        const Vec2 acc_ideal = ideal;
+        const auto at_start = keep();
         const std::array<double, 3> ia = phases();
         steps(f, rest);
         const std::array<double, 3> ib = phases();
@@ -339,23 +344,19 @@ SimulatedSample DriveSimulator::step() {
           if (share < first) first = share, leg = k;
         }
         if (leg == 3) break;  // no crossing: the rest is done
-        load(at_start);
-        applied_d = acc_d, applied_q = acc_q, ideal = acc_ideal;
+        restore(at_start);
         if (first * rest > 0) steps(f, first * rest);
         done += first * rest;
         // At zero: the current's slope with the pole low and with it high (held, as no diode conducts).
         const double probe = 1e-3 * std::max(rest, 1e-9);
         double slope[2];
-        const auto at_zero = save();
-        const double zero_d = applied_d, zero_q = applied_q;
-        const Vec2 zero_ideal = ideal;
+        const auto at_zero = keep();
         for (int high = 0; high < 2; ++high) {
           pinned_pole[leg] = high ? v_dc : 0.0;
           const double before = phases()[leg];
           f(probe);
           slope[high] = (phases()[leg] - before) / probe;
-          load(at_zero);
-          applied_d = zero_d, applied_q = zero_q, ideal = zero_ideal;
+          restore(at_zero);
         }
         pinned_pole[leg] = std::numeric_limits<double>::quiet_NaN();
         // It crossed from the old diode's sign; the other diode keeps it going unless its slope turns it back.
