@@ -382,9 +382,11 @@ class BlockStatistics {
                                Phasor at_sample);
   /// The switching edges' shape integrated over the period after `previous` (edgeModelSet()), in
   /// the rotor frame at mid-period [s]: each leg's mean error in units of V, from its phase currents
-  /// at the period's two sampling instants; `mid`: the rotor angle's phasor at mid-period.
+  /// at the period's two sampling instants; `mid`: the rotor angle's phasor at mid-period;
+  /// `mid_bend`: the phase currents' departure from their chord there (the held vector's bend).
   Vec2 edgeShapeIntegral(const Cumulative& previous, const std::array<double, 3>& i_start,
-                         const std::array<double, 3>& i_end, double dt, Phasor mid) const;
+                         const std::array<double, 3>& i_end, double dt, Phasor mid,
+                         const std::array<double, 3>& mid_bend) const;
   void rescale();
   /// The projection is computed when a fit first reads it after new data (RLS, the EKF and the
   /// exact fit read it every few hundred samples, the swarm's fitness every sample).

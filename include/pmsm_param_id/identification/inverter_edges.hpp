@@ -29,6 +29,10 @@ struct InverterEdgePeriod {
   /// of its ramp (the current's slope within the dead time) over i + N(0, width^2); without it, the
   /// sign of the edge current as tanh(i / width). 0: exact.
   double width = 0.0;
+  /// [A]: each phase current's departure from the chord between the samples at mid-period (the
+  /// held vector's bend, a parabola through the period's ends: the back EMF turns within the period
+  /// while the stator-frame vector is held). 0: the chord.
+  std::array<double, 3> mid_bend{};
 };
 
 /// Each leg's mean error over the period in units of the dead time's volt-seconds per period
@@ -49,7 +53,10 @@ std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& period, const 
 /// time's voltage (one replay where no current comes near zero; at most 40). Exact for currents that
 /// follow the chord's slope and the ripple; the width is not used. Without the bus voltage:
 /// inverterEdgeShape.
+/// `moments` (if given): each leg's loss weighted by its time from mid-period, in units of V T_s
+/// [s]: where the losses fall off the period's middle (one edge of a leg whose current crosses zero)
+/// the rotor turns by omega_e times it before they act (errorImage).
 std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& period, const std::array<double, 3>& i_start,
-                                         const std::array<double, 3>& i_end);
+                                         const std::array<double, 3>& i_end, std::array<double, 3>* moments = nullptr);
 
 }  // namespace pmsm_param_id

@@ -245,7 +245,8 @@ void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulativ
 }
 
 Vec2 BlockStatistics::edgeShapeIntegral(const Cumulative& p, const std::array<double, 3>& i_start,
-                                        const std::array<double, 3>& i_end, double dt, Phasor mid) const {
+                                        const std::array<double, 3>& i_end, double dt, Phasor mid,
+                                        const std::array<double, 3>& mid_bend) const {
   // The acting vector in the stator frame: turned by the drive's voltage angle where the fit
   // estimates one, held in the stator frame from the period's start (stationary hold) or at mid-period.
   Vec2 acting{p.applied_d, p.applied_q};
@@ -259,10 +260,15 @@ Vec2 BlockStatistics::edgeShapeIntegral(const Cumulative& p, const std::array<do
   e.L_q = edge_L_q_;
   e.rotor = mid;
   e.width = settings_.inverter_zero_crossing_current;
+  e.mid_bend = mid_bend;
   // With the bus voltage the period is replayed edge by edge (exact for the chord's currents);
   // without it, the edges' first-order model with the zero-crossing width.
-  const std::array<double, 3> m = inverterEdgeReplay(e, i_start, i_end);
-  const Vec2 v = rotate(clarke(m[0], m[1], m[2]), conjugate(mid));  // into the rotor frame at mid-period
+  std::array<double, 3> moments{};
+  const std::array<double, 3> m = inverterEdgeReplay(e, i_start, i_end, &moments);
+  // Into the rotor frame at mid-period; a loss t off the middle acts with the rotor turned by
+  // omega_e t: to first order -j omega_e times its moment.
+  const Vec2 c = clarke(m[0], m[1], m[2]), cm = clarke(moments[0], moments[1], moments[2]);
+  const Vec2 v = rotate(Vec2{c.x + p.omega_e * cm.y, c.y - p.omega_e * cm.x}, conjugate(mid));
   return {dt * v.x, dt * v.y};
 }
 
@@ -429,7 +435,10 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
   }
   if (edgeModelSet()) {  // the narrow shape from the path's ends, edge by edge
     const Phasor start{p.cos_theta, p.sin_theta}, mid = advance(start, p.theta_e, 0.5 * angle_increment);
-    const Vec2 v = edgeShapeIntegral(p, phaseFromDq(d_start, q_start, start), phaseFromDq(d0, q0, Phasor{cos0, sin0}), dt, mid);
+    // The path bends within the period as the held vector turns (holdBend over the whole period).
+    const HoldBend period_bend = settings_.stationary_hold ? holdBend(dt, w, acting.x, acting.y, L_d, L_q) : HoldBend{};
+    const Vec2 v = edgeShapeIntegral(p, phaseFromDq(d_start, q_start, start), phaseFromDq(d0, q0, Phasor{cos0, sin0}), dt,
+                                     mid, phaseFromDq(period_bend.mid_d, period_bend.mid_q, mid));
     out.narrow_d = v.x;
     out.narrow_q = v.y;
   }
@@ -647,7 +656,7 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
     } else {
       inverterShapeIntegral(p, c, s, dt, width, mid_bend, mid, inv_d, inv_q, both ? &wide_integral : nullptr);
       if (edgeModelSet() && std::isfinite(p.theta_e) && std::isfinite(s.theta_e)) {  // the narrow shape edge by edge
-        const Vec2 v = edgeShapeIntegral(p, p.phase, c.phase, dt, mid);
+        const Vec2 v = edgeShapeIntegral(p, p.phase, c.phase, dt, mid, mid_bend);
         inv_d = v.x;
         inv_q = v.y;
       }

@@ -192,7 +192,8 @@ std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& in, const std:
 }
 
 std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std::array<double, 3>& i_start,
-                                         const std::array<double, 3>& i_end) {
+                                         const std::array<double, 3>& i_end, std::array<double, 3>* moments) {
+  if (moments) *moments = {};
   const double T = in.period, V = in.bus_voltage;
   const double t_d = std::isfinite(V) && V > 0 ? std::max(0.0, in.dead_volt_seconds) / V : 0.0;
   double row[3][2];
@@ -233,11 +234,13 @@ std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std
   }
   const double dead_volts = in.dead_volt_seconds / T;
   const auto replay = [&](Vec2 mean) {
-    std::array<double, 3> i = i_start, volt_seconds{};
+    std::array<double, 3> i = i_start, volt_seconds{}, moment{};
     std::array<bool, 3> pinned{};
+    double bend_at = 0.0;  // the bend's share of the slope at the step's middle: 4 (1 - 2 t / T) / T
     const auto slopesFor = [&](const std::array<double, 3>& p, std::array<double, 3>& s) {
       const Vec2 u = clarke(p[0], p[1], p[2]);
-      for (std::size_t k = 0; k < 3; ++k) s[k] = fund[k] + row[k][0] * (u.x - mean.x) + row[k][1] * (u.y - mean.y);
+      for (std::size_t k = 0; k < 3; ++k)
+        s[k] = fund[k] + bend_at * in.mid_bend[k] + row[k][0] * (u.x - mean.x) + row[k][1] * (u.y - mean.y);
     };
     for (std::size_t b = 0; b + 1 < nb; ++b) {
       double t = breaks[b];
@@ -255,6 +258,7 @@ std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std
         if (state[k] != 2) pinned[k] = false;
       }
       for (int guard = 0; guard < 8 && t < t1; ++guard) {
+        bend_at = 4.0 * (1.0 - (t + t1) / T) / T;
         std::array<double, 3> pole{};
         for (std::size_t k = 0; k < 3; ++k)
           pole[k] = state[k] == 2 ? (pinned[k] ? 0.5 * V : (i[k] > 0 ? 0.0 : V)) : (state[k] == 1 ? V : 0.0);
@@ -286,6 +290,7 @@ std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std
         for (std::size_t k = 0; k < 3; ++k) {
           i[k] += slope[k] * step;
           volt_seconds[k] += pole[k] * step;
+          moment[k] += pole[k] * step * (t + 0.5 * step - 0.5 * T);
         }
         t += step;
         if (crossing < 3) i[crossing] = 0.0;
@@ -294,6 +299,8 @@ std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std
     std::array<double, 3> losses{};
     for (std::size_t k = 0; k < 3; ++k)
       losses[k] = fixed[k] >= 0 ? 0.0 : (V * (fall[k] - rise[k]) - volt_seconds[k]) / in.dead_volt_seconds;
+    if (moments)  // the ideal pole's moment is zero (high from rise to fall, symmetric about mid-period)
+      for (std::size_t k = 0; k < 3; ++k) (*moments)[k] = fixed[k] >= 0 ? 0.0 : -moment[k] / in.dead_volt_seconds;
     return losses;
   };
   // The period's mean vector is the commanded one less the losses' image, and the losses follow
