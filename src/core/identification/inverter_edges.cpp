@@ -233,6 +233,28 @@ std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std
     out[k] = fixed[k] >= 0 ? 0.0 : (mean > 0 ? 1.0 : -1.0);
   }
   const double dead_volts = in.dead_volt_seconds / T;
+  {
+    // Where no phase current can reach zero within the period, each leg loses (positive current) or
+    // gains its whole dead time at one edge, which is what the replay would find: its currents' signs,
+    // and the loss's moment at that edge. Then the replay is skipped (on the 36 mH industrial drive
+    // most periods; on the robot joint none). The path leaves the chord between the ends by at most
+    // |row_k| min(t, T - t) |u - v_mean| (it closes at both ends) plus the bend, and
+    // |u - v_mean| <= 2/3 V_dc + |v| + 4/3 dead_volts (the legs' vector, the commanded one, the losses).
+    const double volts = 2.0 / 3.0 * V + std::hypot(in.voltage.x, in.voltage.y) + 4.0 / 3.0 * dead_volts;
+    std::array<double, 3> at_edge{};
+    bool clear = true;
+    for (std::size_t k = 0; k < 3 && clear; ++k) {
+      if (fixed[k] >= 0) continue;
+      const double reach = 0.5 * T * std::hypot(row[k][0], row[k][1]) * volts + std::abs(in.mid_bend[k]);
+      clear = i_start[k] * i_end[k] > 0 && std::min(std::abs(i_start[k]), std::abs(i_end[k])) > reach &&
+              fall[k] + t_d < T;
+      at_edge[k] = i_start[k] > 0 ? rise[k] + 0.5 * t_d - 0.5 * T : rise[k] - 0.5 * t_d - 0.5 * T;
+    }
+    if (clear) {
+      if (moments) *moments = at_edge;
+      return out;
+    }
+  }
   const auto replay = [&](Vec2 mean) {
     std::array<double, 3> i = i_start, volt_seconds{}, moment{};
     std::array<bool, 3> pinned{};
