@@ -190,10 +190,10 @@ TEST(InverterEdges, TheReplayFollowsTheHeldVectorsBendAndTheRotorsTurnAtEachLoss
   // simulator with exact currents (robot_joint_pwm, the dead time alone, 0.4 s, the periods above
   // 100 rad/s), the mean d error left per period by the chord's replay is -5.1 mV (0.7 % of V, a
   // block's 0.6 A of d current), with the bend and the moments +2.2 mV. What is left sits in the
-  // periods where a phase's sampled current is within 0.5 A of zero and is not explained: an
-  // independent integration of each period in 2 ns steps agreed with the simulator's applied
-  // voltages to 0.02 mV in the mean there. The q error (1.1 mV, the ripple's resistive drop, which
-  // the replay leaves out) is not theirs.
+  // periods where a phase's sampled current is within 0.5 A of zero (an independent integration of
+  // each period in 2 ns steps agreed with the simulator's applied voltages to 0.02 mV in the mean
+  // there): the chord's own feedback through the period's mean vector (doc/results.md). The q
+  // error (1.1 mV, the ripple's resistive drop, which the replay leaves out) is not theirs.
   Scenario s = test_helpers::scenario("robot_joint_pwm.yaml");
   s.sensors = {};
   s.inverter.device_drop = 0.0;

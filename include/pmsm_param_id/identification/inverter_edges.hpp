@@ -53,9 +53,13 @@ std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& period, const 
 /// time's voltage (one replay where no current comes near zero; at most 40). Exact for currents that
 /// follow the chord's slope and the ripple; the width is not used. Without the bus voltage:
 /// inverterEdgeShape.
-/// `moments` (if given): each leg's loss weighted by its time from mid-period, in units of V T_s
-/// [s]: where the losses fall off the period's middle (one edge of a leg whose current crosses zero)
-/// the rotor turns by omega_e times it before they act (errorImage).
+/// The currents follow the chord plus `mid_bend`'s parabola. Where no phase current can reach zero
+/// within the period (its ends beyond the ripple's bound), the result follows from the currents'
+/// signs and the period is not replayed.
+/// `moments` (if given): each leg's lost volt-seconds weighted by their time from mid-period, over
+/// V T_s [s]: where a loss falls off the period's middle (one edge of a leg whose current crosses
+/// zero) the rotor has turned by omega_e times that, so its rotor-frame image at mid-period takes
+/// -j omega_e times the moments' Clarke vector as well.
 std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& period, const std::array<double, 3>& i_start,
                                          const std::array<double, 3>& i_end, std::array<double, 3>* moments = nullptr);
 
