@@ -53,8 +53,7 @@ struct SimulatedPeriod {
   /// The stator-frame image of a shape, turned into the rotor frame at mid-period with each loss's
   /// turn from its moment (inverterEdgeReplay's `moments`).
   Vec2 image(const std::array<double, 3>& m, const std::array<double, 3>& moments) const {
-    const Vec2 c = clarke(m[0], m[1], m[2]), cm = clarke(moments[0], moments[1], moments[2]);
-    return rotate(Vec2{c.x + omega_e * cm.y, c.y - omega_e * cm.x}, conjugate(mid));
+    return inverterEdgeImage(m, moments, omega_e, mid);
   }
   /// A shape's phase values as the rotor-frame vector the error is compared with.
   Vec2 image(const std::array<double, 3>& m) const { return rotate(clarke(m[0], m[1], m[2]), conjugate(mid)); }

@@ -63,4 +63,10 @@ std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& period, const 
 std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& period, const std::array<double, 3>& i_start,
                                          const std::array<double, 3>& i_end, std::array<double, 3>* moments = nullptr);
 
+/// The legs' mean errors (inverterEdgeReplay's shares, in units of V) as a rotor-frame vector at
+/// mid-period (`mid`: the rotor angle's phasor there): their Clarke vector turned into the rotor
+/// frame, less j omega_e times the moments' (each loss acts where the rotor has turned by omega_e t).
+Vec2 inverterEdgeImage(const std::array<double, 3>& shares, const std::array<double, 3>& moments, double omega_e,
+                       Phasor mid);
+
 }  // namespace pmsm_param_id

@@ -265,10 +265,7 @@ Vec2 BlockStatistics::edgeShapeIntegral(const Cumulative& p, const std::array<do
   // without it, the edges' first-order model with the zero-crossing width.
   std::array<double, 3> moments{};
   const std::array<double, 3> m = inverterEdgeReplay(e, i_start, i_end, &moments);
-  // Into the rotor frame at mid-period; a loss t off the middle acts with the rotor turned by
-  // omega_e t: to first order -j omega_e times its moment.
-  const Vec2 c = clarke(m[0], m[1], m[2]), cm = clarke(moments[0], moments[1], moments[2]);
-  const Vec2 v = rotate(Vec2{c.x + p.omega_e * cm.y, c.y - p.omega_e * cm.x}, conjugate(mid));
+  const Vec2 v = inverterEdgeImage(m, moments, p.omega_e, mid);
   return {dt * v.x, dt * v.y};
 }
 

@@ -360,4 +360,10 @@ std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std
   return out;
 }
 
+Vec2 inverterEdgeImage(const std::array<double, 3>& shares, const std::array<double, 3>& moments, double omega_e,
+                       Phasor mid) {
+  const Vec2 c = clarke(shares[0], shares[1], shares[2]), cm = clarke(moments[0], moments[1], moments[2]);
+  return rotate(Vec2{c.x + omega_e * cm.y, c.y - omega_e * cm.x}, conjugate(mid));
+}
+
 }  // namespace pmsm_param_id
