@@ -240,12 +240,15 @@ std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std
     // most periods; on the robot joint none). The path leaves the chord between the ends by at most
     // |row_k| min(t, T - t) |u - v_mean| (it closes at both ends) plus the bend, and
     // |u - v_mean| <= 2/3 V_dc + |v| + 4/3 dead_volts (the legs' vector, the commanded one, the losses).
-    const double volts = 2.0 / 3.0 * V + std::hypot(in.voltage.x, in.voltage.y) + 4.0 / 3.0 * dead_volts;
+    // (sqrt, not hypot: finite values, and this runs every period)
+    const double volts =
+        2.0 / 3.0 * V + std::sqrt(in.voltage.x * in.voltage.x + in.voltage.y * in.voltage.y) + 4.0 / 3.0 * dead_volts;
     std::array<double, 3> at_edge{};
     bool clear = true;
     for (std::size_t k = 0; k < 3 && clear; ++k) {
       if (fixed[k] >= 0) continue;
-      const double reach = 0.5 * T * std::hypot(row[k][0], row[k][1]) * volts + std::abs(in.mid_bend[k]);
+      const double row_norm = std::sqrt(row[k][0] * row[k][0] + row[k][1] * row[k][1]);
+      const double reach = 0.5 * T * row_norm * volts + std::abs(in.mid_bend[k]);
       clear = i_start[k] * i_end[k] > 0 && std::min(std::abs(i_start[k]), std::abs(i_end[k])) > reach &&
               fall[k] + t_d < T;
       at_edge[k] = i_start[k] > 0 ? rise[k] + 0.5 * t_d - 0.5 * T : rise[k] - 0.5 * t_d - 0.5 * T;
