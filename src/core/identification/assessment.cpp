@@ -133,19 +133,27 @@ struct Misfit {
   std::string text;
   MisfitCause kind = MisfitCause::None;
   double delay = 0.0;  // the delay alternative's a [samples] when it is the cause
+  std::string label;   // the alternative in a few words
+  double fitness = 0.0, ratio_d = NAN, ratio_q = NAN;  // what it leaves: its fitness, its residual / the noise's
 };
+/// Where the fit already fails, an alternative names the cause only where it leaves at most this
+/// share of the fit's residual (the drive model's switch asks the same of the drive's effects): a
+/// significant one that explains a sliver is not the cause [-].
+constexpr double kMisfitExplained = 0.5;
 Misfit misspecification(const WindowSums& window, const AssessmentSettings& a, const FitCheck& fit,
                         const SpeedScale& speed_scale) {
   Eigen::VectorXd start4(4);
   for (int p = 0; p < kParameterCount; ++p) start4(p) = fit.optimum[p];
   Misfit best;
   double best_fitness = fit.optimum_fitness;
+  const double tiny = std::numeric_limits<double>::min();
   const auto consider = [&](const BlockFit& f, bool significant, const std::string& text, MisfitCause kind,
-                            double delay = 0.0) {
+                            const std::string& label, double delay = 0.0) {
     if (!f.ok || !significant || text.empty()) return;
     if (f.fitness() < best_fitness || best.text.empty()) {
       best_fitness = f.fitness();
-      best = {text, kind, delay};
+      best = {text, kind, delay, label, f.fitness(), f.mean_square_d / std::max(fit.block_noise_variance_d, tiny),
+              f.mean_square_q / std::max(fit.block_noise_variance_q, tiny)};
     }
   };
   // In the fitness window the current-step terms of a steady state are weak and biased by the
@@ -154,7 +162,7 @@ Misfit misspecification(const WindowSums& window, const AssessmentSettings& a, c
   if (!fit.consistent) {
     // Only a factor beyond 2.5 names a unit here (the bias reached 0.5 on correct data).
     const std::string text = unitCause(speed_scale, std::log(2.5));
-    consider(speed_scale.fit, !text.empty(), text, MisfitCause::Unit);
+    consider(speed_scale.fit, !text.empty(), text, MisfitCause::Unit, "the speed's unit");
   }
   // With a saturating machine modelled, every alternative keeps its L_qq and L_dq.
   const bool cross = fit.cross_saturation_modelled;
@@ -182,7 +190,8 @@ Misfit misspecification(const WindowSums& window, const AssessmentSettings& a, c
                               "(most drives apply a voltage one period after computing it)"
                             : "the voltages act %.2g samples earlier than declared: lower time.voltage_delay_samples",
                       std::abs(d)),
-             fractional ? MisfitCause::Other : MisfitCause::Delay, d);
+             fractional ? MisfitCause::Other : MisfitCause::Delay,
+             format(fractional ? "a fractional delay (%.2g samples)" : "a delay of %.2g samples", d), d);
   }
   // The voltage acting at another angle than declared (the drive's angle prediction, which no log
   // records): a omega_e T_s of turn. At one steady operating point it is indistinguishable from L_q
@@ -198,7 +207,7 @@ Misfit misspecification(const WindowSums& window, const AssessmentSettings& a, c
                     "prediction, which the log does not record): set time.voltage_angle: estimate, or declare "
                     "time.angle_prediction",
                     angle),
-             MisfitCause::VoltageAngle);
+             MisfitCause::VoltageAngle, format("a voltage angle of %.2g omega_e T_s", angle));
   }
   // A saturating machine: the d-axis current steps drive the q axis through L_dq (reciprocity), and
   // R_s absorbs -omega_e L_dq. Relevant when L_dq is significant and its omega_e L_dq is more than
@@ -217,7 +226,7 @@ Misfit misspecification(const WindowSums& window, const AssessmentSettings& a, c
                     "changes show in the q axis), and R_s absorbs -omega_e L_dq = %.3g ohm; set "
                     "magnetics.cross_saturation: true (doc/algorithm.md section 11)",
                     Ldq, -omega * Ldq),
-             MisfitCause::Saturation);
+             MisfitCause::Saturation, "cross-saturation");
   }
   // An inverter voltage error along the current vector (dead time, device drops): relevant when
   // it is more than 1 % of the resistive drop it would otherwise hide in R_s.
@@ -234,7 +243,18 @@ Misfit misspecification(const WindowSums& window, const AssessmentSettings& a, c
     consider(f, significant,
              format("an inverter voltage error of about %.3g V along the current (dead time, device drops) fits the "
                     "data: R_s cannot be told from it; log the applied voltages or compensate dead time", V),
-             MisfitCause::Inverter);
+             MisfitCause::Inverter, format("an inverter voltage error of %.3g V", V));
+  }
+  // A fit that fails and an alternative that explains a sliver of it: the cause is not found, and
+  // the text says so (its kind stays: the decisions that follow a misfit's kind are unchanged).
+  if (!fit.consistent && !best.text.empty() && !(best.fitness <= kMisfitExplained * fit.optimum_fitness)) {
+    char buf[400];
+    std::snprintf(buf, sizeof buf,
+                  "not one of the effects tested (a whole or fractional delay, the voltage's angle, an inverter error "
+                  "voltage, cross-saturation, the speed's unit): with the one that fits best, %s, the residual is "
+                  "still %.3g (d) / %.3g (q) times what the noise explains",
+                  best.label.c_str(), best.ratio_d, best.ratio_q);
+    best.text = buf;
   }
   return best;
 }

@@ -952,7 +952,7 @@ Estimate OnlineIdentifier::estimate() const {
     if (!e.fit.consistent && e.fit.likely_cause_kind != MisfitCause::None)
       for (int p : {kRs, kPsiF}) {
         e.slow.status[p] = ParameterStatus::PoorFit;
-        e.slow.reason[p] = "the fitness window's fit names a cause that holds here too: " + e.fit.likely_cause;
+        e.slow.reason[p] = "the fitness window's diagnosis of its misfit holds here too: " + e.fit.likely_cause;
       }
     if (widthPending())
       for (int p : {kRs, kPsiF})
