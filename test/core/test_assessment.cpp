@@ -1635,6 +1635,22 @@ TEST(DriveModel, WithNothingDeclaredARealDrivesLogGetsTheRealDrivesModel) {
   }
 }
 
+TEST(DriveModel, ARobotJointBehindASwitchingInverterFitsWithItsDelayDeclared) {
+  // 40 / 60 uH behind a 20 kHz inverter whose current ripple spans the current within each period:
+  // the shape's observer follows each period forward through the switching edges (the chord
+  // between the samples made each edge's loss move its own edge current; the fit stayed at 56 / 92
+  // times the noise), and starts before the fit is consistent (it is not until the observer runs).
+  const auto data = test_helpers::run(test_helpers::scenario("robot_joint_pwm.yaml"));
+  const IdentifierConfig c = loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/real_drive.yaml"));
+  const Estimate e = identify(samplesOf(data), "wls", c);
+  EXPECT_TRUE(e.fit.consistent) << e.fit.fit_ratio_d << " / " << e.fit.fit_ratio_q << " " << e.fit.likely_cause;
+  EXPECT_TRUE(e.identifiable[kPsiF]) << e.reason[kPsiF];
+  EXPECT_NEAR(e.parameters[kPsiF], data.back().truth[kPsiF], 1e-3 * data.back().truth[kPsiF]);
+  for (int p = 0; p < kParameterCount; ++p)
+    if (e.identifiable[p])
+      EXPECT_LT(std::abs(errorPercent(e.parameters[p], data.back().truth[p])), 2.0) << parameterNames()[p];
+}
+
 TEST(DriveModel, AnIdealDriveAndAMotorsStepChangeKeepThePapersModel) {
   // The paper's model fits an ideal drive; a demagnetisation step misfits the window only until it
   // is forgotten, and must not switch the model.

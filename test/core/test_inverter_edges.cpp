@@ -48,6 +48,7 @@ struct SimulatedPeriod {
   Vec2 error;
   InverterEdgePeriod period;
   std::array<double, 3> i_start, i_end;
+  Vec2 dq_start;  ///< the rotor-frame currents at the period's start [A]
   Phasor mid;
   double omega_e = 0;  ///< [rad/s] over the period
   /// The stator-frame image of a shape, turned into the rotor frame at mid-period with each loss's
@@ -75,6 +76,7 @@ std::vector<SimulatedPeriod> periodsOf(const Scenario& s) {
     x.period.L_q = s.motor.L_q;
     x.period.rotor = x.mid;
     x.i_start = phaseFromDq(a.i_d_true, a.i_q_true, a.sample.theta_e);
+    x.dq_start = {a.i_d_true, a.i_q_true};
     x.i_end = phaseFromDq(b.i_d_true, b.i_q_true, a.sample.theta_e + turn);
     x.error = {a.u_d_ideal - a.u_d_applied, a.u_q_ideal - a.u_q_applied};
     x.omega_e = turn / s.drive.sample_period;
@@ -225,4 +227,55 @@ TEST(InverterEdges, TheReplayFollowsTheHeldVectorsBendAndTheRotorsTurnAtEachLoss
   EXPECT_LT(chord_d, -0.004) << label;
   EXPECT_LT(std::abs(full_d), std::abs(chord_d) / 2.0) << label;
   EXPECT_LT(std::abs(full_q), std::abs(chord_q) + 2e-4) << label;
+}
+
+TEST(InverterEdges, FollowedForwardThePeriodEndsWhereTheMotorsCurrentDoesAndItsErrorIsExplained) {
+  // The chord's replay pins both ends of the period and solves for its mean vector; near a zero
+  // crossing a change of a leg's loss then moves that vector and through it the same edge current
+  // (on the robot joint about 0.36 A per unit of loss, against a loss that moves by about 2.75 per
+  // ampere of the edge current): a feedback near one. Followed forward from the start current (the
+  // back EMF turning within the period, the resistive drop along the path; what the identifier's
+  // observer does, BlockStatistics::observePeriodForward), the period's end current is predicted
+  // and the error voltage explained where the chord's replay is not. Exact currents, the true
+  // model, the dead time alone (robot_joint_pwm, 0.4 s, the periods above 100 rad/s): measured
+  // 0.44 mA RMS at the end; per period 0.42 / 0.24 mV RMS left (d / q) forward, 9.5 / 6.0 mV by the
+  // chord (its replay here without the held vector's bend).
+  Scenario s = test_helpers::scenario("robot_joint_pwm.yaml");
+  s.sensors = {};
+  s.inverter.device_drop = 0.0;
+  s.duration = 0.4;
+  const double V = s.drive.dc_bus_voltage * s.inverter.dead_time / s.drive.sample_period;
+  const double R = s.motor.R_s, L_d = s.motor.L_d, L_q = s.motor.L_q, psi = s.motor.psi_f;
+  double end2 = 0, chord2_d = 0, chord2_q = 0, forward2_d = 0, forward2_q = 0;
+  int n = 0;
+  for (const SimulatedPeriod& x : periodsOf(s)) {
+    if (x.period.voltage.x == 0 && x.period.voltage.y == 0) continue;
+    if (std::abs(x.omega_e) < 100.0) continue;  // start-up and the reversal
+    const double w = x.omega_e, d = x.dq_start.x, q = x.dq_start.y;
+    InverterEdgeForward f;
+    f.drift = rotate(Vec2{R * d + w * (L_d - L_q) * q, R * q + w * (L_d - L_q) * d + w * psi}, x.mid);
+    const Vec2 emf = rotate(Vec2{0.0, w * psi}, x.mid);
+    f.drift_rate = {-w * emf.y, w * emf.x};
+    f.resistance = R;
+    f.drift_current = phaseFromDq(d, q, x.mid);
+    std::array<double, 3> moments{};
+    const Vec2 forward = x.image(inverterEdgeReplay(x.period, x.i_start, x.i_start, &moments, &f), moments);
+    const Vec2 chord = x.image(inverterEdgeReplay(x.period, x.i_start, x.i_end, &moments), moments);
+    for (std::size_t k = 0; k < 3; ++k) end2 += (f.i_end[k] - x.i_end[k]) * (f.i_end[k] - x.i_end[k]) / 3.0;
+    chord2_d += std::pow(x.error.x - V * chord.x, 2);
+    chord2_q += std::pow(x.error.y - V * chord.y, 2);
+    forward2_d += std::pow(x.error.x - V * forward.x, 2);
+    forward2_q += std::pow(x.error.y - V * forward.y, 2);
+    ++n;
+  }
+  ASSERT_GT(n, 4000);
+  const double end_rms = std::sqrt(end2 / n);
+  const double chord_d = std::sqrt(chord2_d / n), chord_q = std::sqrt(chord2_q / n);
+  const double forward_d = std::sqrt(forward2_d / n), forward_q = std::sqrt(forward2_q / n);
+  const std::string label = "end current " + std::to_string(1e3 * end_rms) + " mA RMS; error left per period [mV RMS]: " +
+                            "forward " + std::to_string(1e3 * forward_d) + " / " + std::to_string(1e3 * forward_q) +
+                            ", chord " + std::to_string(1e3 * chord_d) + " / " + std::to_string(1e3 * chord_q);
+  EXPECT_LT(end_rms, 2e-3) << label;
+  EXPECT_LT(forward_d, chord_d / 5.0) << label;
+  EXPECT_LT(forward_q, chord_q / 5.0) << label;
 }

@@ -292,7 +292,12 @@ class BlockStatistics {
   double edgeV() const { return edge_V_; }     ///< setEdgeModel's V [V]
   /// Parameters of the inverter shape's current observer (WindowSettings::inverter_shape_observer_gain),
   /// set from the data's exact fit; the observer also takes the inverter voltage set above.
-  void setShapeObserverModel(const ParameterVector& p) { observer_model_ = p; }
+  /// `consistent`: the model is that of a fit consistent with the noise (not a start-up's).
+  void setShapeObserverModel(const ParameterVector& p, bool consistent = false) {
+    observer_model_ = p;
+    observer_model_consistent_ = consistent;
+  }
+  bool shapeObserverModelConsistent() const { return observer_model_consistent_ && shapeObserverActive(); }
   std::pair<double, double> observerCurrents() const { return {observer_i_d_, observer_i_q_}; }
   bool shapeObserverActive() const {
     return settings_.inverter_shape_observer_gain > 0 && settings_.inverter_shape_observer_gain < 1 &&
@@ -380,6 +385,16 @@ class BlockStatistics {
   /// `at_sample`: the phasor of the sample's angle (the previous one's is in `previous`).
   ObservedPeriod observePeriod(const Cumulative& previous, const Sample& s, double dt, double angle_increment,
                                Phasor at_sample);
+  /// observePeriod with the switching edges replayed from the logged bus voltage: the period
+  /// followed forward from the observer's current through each edge (inverterEdgeReplay's
+  /// `forward`), the rotor-frame model's drift (R i, the cross-coupling, the back EMF turning
+  /// within the period) against the legs' voltages; its end, pulled towards the sample by the
+  /// gain, starts the next period.
+  ObservedPeriod observePeriodForward(const Cumulative& previous, const Sample& s, double dt, double angle_increment,
+                                      Phasor at_sample);
+  /// The observer's next state: the period's end (end_d, end_q) pulled towards the sample by the
+  /// gain; a non-finite result restarts it from the sample and drops the period's terms.
+  ObservedPeriod finishPeriod(ObservedPeriod out, double end_d, double end_q, const Sample& s, Phasor at_sample);
   /// The switching edges' shape integrated over the period after `previous` (edgeModelSet()), in
   /// the rotor frame at mid-period [s]: each leg's mean error in units of V, from its phase currents
   /// at the period's two sampling instants; `mid`: the rotor angle's phasor at mid-period;
@@ -464,6 +479,7 @@ class BlockStatistics {
   double hold_L_d_ = 0.0, hold_L_q_ = 0.0;
   double edge_L_d_ = 0.0, edge_L_q_ = 0.0, edge_V_ = 0.0;  // setEdgeModel()
   ParameterVector observer_model_{};          // R_s, L_d, L_q, psi_f of the shape's observer (0: none yet)
+  bool observer_model_consistent_ = false;    // observer_model_ from a fit consistent with the noise
   double observer_i_d_ = 0.0, observer_i_q_ = 0.0;  // its currents at the last sample [A]
   double cross_L_dq_ = 0.0, cross_L_qq_ = 0.0;
   bool have_previous_block_ = false;

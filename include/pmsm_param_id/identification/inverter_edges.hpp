@@ -60,8 +60,22 @@ std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& period, const 
 /// V T_s [s]: where a loss falls off the period's middle (one edge of a leg whose current crosses
 /// zero) the rotor has turned by omega_e times that, so its rotor-frame image at mid-period takes
 /// -j omega_e times the moments' Clarke vector as well.
+/// `forward` (if given): the period followed forward from `i_start` alone (no chord, `i_end` unused,
+/// never skipped, one pass): the currents move at L^-1 (legs' vector - drift(t) - R (i -
+/// drift_current)), drift(t) = drift + (t - T/2) drift_rate, the resistive drop taken at each
+/// step's midpoint (a predictor step).
+struct InverterEdgeForward {
+  Vec2 drift{};       ///< stator frame, mid-period: the voltage that holds the currents still [V]
+  Vec2 drift_rate{};  ///< [V/s]: the back EMF's turn
+  double resistance = 0.0;                ///< [ohm]
+  std::array<double, 3> drift_current{};  ///< the phase currents the drift's R i is taken at [A]
+  std::array<double, 3> i_end{};          ///< out: the phase currents at the period's end (NaN: not replayed) [A]
+  std::array<double, 3> integral{};       ///< out: each phase current's integral over the period [A s]
+};
+
 std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& period, const std::array<double, 3>& i_start,
-                                         const std::array<double, 3>& i_end, std::array<double, 3>* moments = nullptr);
+                                         const std::array<double, 3>& i_end, std::array<double, 3>* moments = nullptr,
+                                         InverterEdgeForward* forward = nullptr);
 
 /// The legs' mean errors (inverterEdgeReplay's shares, in units of V) as a rotor-frame vector at
 /// mid-period (`mid`: the rotor angle's phasor there): their Clarke vector turned into the rotor

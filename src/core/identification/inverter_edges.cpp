@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace pmsm_param_id {
 
@@ -192,8 +193,10 @@ std::array<double, 3> inverterEdgeShape(const InverterEdgePeriod& in, const std:
 }
 
 std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std::array<double, 3>& i_start,
-                                         const std::array<double, 3>& i_end, std::array<double, 3>* moments) {
+                                         const std::array<double, 3>& i_end, std::array<double, 3>* moments,
+                                         InverterEdgeForward* forward) {
   if (moments) *moments = {};
+  if (forward) forward->i_end.fill(std::numeric_limits<double>::quiet_NaN());  // until replayed
   const double T = in.period, V = in.bus_voltage;
   const double t_d = std::isfinite(V) && V > 0 ? std::max(0.0, in.dead_volt_seconds) / V : 0.0;
   double row[3][2];
@@ -208,7 +211,7 @@ std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std
   breaks[nb++] = T;
   for (std::size_t k = 0; k < 3; ++k) {
     const double duty = 0.5 + (v[k] + v0) / V;
-    fund[k] = (i_end[k] - i_start[k]) / T;
+    fund[k] = forward ? 0.0 : (i_end[k] - i_start[k]) / T;
     if (!(duty > 0.0 && duty < 1.0)) {
       fixed[k] = duty >= 1.0 ? 1 : 0;
       continue;
@@ -233,7 +236,7 @@ std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std
     out[k] = fixed[k] >= 0 ? 0.0 : (mean > 0 ? 1.0 : -1.0);
   }
   const double dead_volts = in.dead_volt_seconds / T;
-  {
+  if (!forward) {
     // Where no phase current can reach zero within the period, each leg loses (positive current) or
     // gains its whole dead time at one edge, which is what the replay would find: its currents' signs,
     // and the loss's moment at that edge. Then the replay is skipped (on the 36 mH industrial drive
@@ -258,15 +261,23 @@ std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std
       return out;
     }
   }
-  const auto replay = [&](Vec2 mean) {
-    std::array<double, 3> i = i_start, volt_seconds{}, moment{};
+  const auto replay = [&](Vec2 mean0) {
+    Vec2 mean = mean0;
+    std::array<double, 3> i = i_start, volt_seconds{}, moment{}, integral{};
     std::array<bool, 3> pinned{};
     double bend_at = 0.0;  // the bend's share of the slope at the step's middle: 4 (1 - 2 t / T) / T
-    const auto slopesFor = [&](const std::array<double, 3>& p, std::array<double, 3>& s) {
-      const Vec2 u = clarke(p[0], p[1], p[2]);
+    const double R = forward ? forward->resistance : 0.0;
+    const auto slopesAt = [&](const std::array<double, 3>& p, const std::array<double, 3>& at, std::array<double, 3>& s) {
+      Vec2 u = clarke(p[0], p[1], p[2]);
+      if (R > 0) {
+        const Vec2 di = clarke(at[0] - forward->drift_current[0], at[1] - forward->drift_current[1],
+                               at[2] - forward->drift_current[2]);
+        u = {u.x - R * di.x, u.y - R * di.y};
+      }
       for (std::size_t k = 0; k < 3; ++k)
         s[k] = fund[k] + bend_at * in.mid_bend[k] + row[k][0] * (u.x - mean.x) + row[k][1] * (u.y - mean.y);
     };
+    const auto slopesFor = [&](const std::array<double, 3>& p, std::array<double, 3>& s) { slopesAt(p, i, s); };
     for (std::size_t b = 0; b + 1 < nb; ++b) {
       double t = breaks[b];
       const double t1 = breaks[b + 1];
@@ -283,7 +294,11 @@ std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std
         if (state[k] != 2) pinned[k] = false;
       }
       for (int guard = 0; guard < 8 && t < t1; ++guard) {
-        bend_at = 4.0 * (1.0 - (t + t1) / T) / T;
+        bend_at = forward ? 0.0 : 4.0 * (1.0 - (t + t1) / T) / T;
+        if (forward) {
+          const double from_mid = 0.5 * (t + t1) - 0.5 * T;
+          mean = {mean0.x + from_mid * forward->drift_rate.x, mean0.y + from_mid * forward->drift_rate.y};
+        }
         std::array<double, 3> pole{};
         for (std::size_t k = 0; k < 3; ++k)
           pole[k] = state[k] == 2 ? (pinned[k] ? 0.5 * V : (i[k] > 0 ? 0.0 : V)) : (state[k] == 1 ? V : 0.0);
@@ -307,12 +322,27 @@ std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std
           }
         double step = t1 - t;
         std::size_t crossing = 3;
-        for (std::size_t k = 0; k < 3; ++k) {
-          if (state[k] != 2 || pinned[k] || i[k] == 0.0 || i[k] * slope[k] >= 0) continue;
-          const double to_zero = -i[k] / slope[k];
-          if (to_zero < step) step = to_zero, crossing = k;
+        const auto findCrossing = [&]() {
+          step = t1 - t;
+          crossing = 3;
+          for (std::size_t k = 0; k < 3; ++k) {
+            if (state[k] != 2 || pinned[k] || i[k] == 0.0 || i[k] * slope[k] >= 0) continue;
+            const double to_zero = -i[k] / slope[k];
+            if (to_zero < step) step = to_zero, crossing = k;
+          }
+        };
+        findCrossing();
+        if (R > 0) {  // the resistive drop at the step's middle (predictor), the pinned currents held
+          std::array<double, 3> half = i;
+          for (std::size_t k = 0; k < 3; ++k)
+            if (!(state[k] == 2 && pinned[k])) half[k] += 0.5 * step * slope[k];
+          slopesAt(pole, half, slope);
+          for (std::size_t k = 0; k < 3; ++k)
+            if (state[k] == 2 && pinned[k]) slope[k] = 0.0;
+          findCrossing();
         }
         for (std::size_t k = 0; k < 3; ++k) {
+          integral[k] += (i[k] + 0.5 * slope[k] * step) * step;
           i[k] += slope[k] * step;
           volt_seconds[k] += pole[k] * step;
           moment[k] += pole[k] * step * (t + 0.5 * step - 0.5 * T);
@@ -326,6 +356,10 @@ std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std
       losses[k] = fixed[k] >= 0 ? 0.0 : (V * (fall[k] - rise[k]) - volt_seconds[k]) / in.dead_volt_seconds;
     if (moments)  // the ideal pole's moment is zero (high from rise to fall, symmetric about mid-period)
       for (std::size_t k = 0; k < 3; ++k) (*moments)[k] = fixed[k] >= 0 ? 0.0 : -moment[k] / in.dead_volt_seconds;
+    if (forward) {
+      forward->i_end = i;
+      forward->integral = integral;
+    }
     return losses;
   };
   // The period's mean vector is the commanded one less the losses' image, and the losses follow
@@ -336,6 +370,7 @@ std::array<double, 3> inverterEdgeReplay(const InverterEdgePeriod& in, const std
     const Vec2 e = clarke(losses[0], losses[1], losses[2]);
     return Vec2{in.voltage.x - dead_volts * e.x, in.voltage.y - dead_volts * e.y};
   };
+  if (forward) return replay(forward->drift);
   Vec2 m = meanOf(out);
   out = replay(m);
   Vec2 r{meanOf(out).x - m.x, meanOf(out).y - m.y};

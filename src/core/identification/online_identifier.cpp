@@ -692,8 +692,24 @@ void OnlineIdentifier::adoptExactFitTerms(const FitCheck& fit) {
   // The switching edges' ripple needs the inductances and V: the data's, once determined to 10 %.
   if (config_.window.inverter_edge_shape && usable && fitDetermines(fit, kLd, 0.1) && fitDetermines(fit, kLq, 0.1))
     stats_.setEdgeModel(fit.optimum[kLd], fit.optimum[kLq], V);
-  if (all) stats_.setShapeObserverModel(fit.optimum);
-  else if (!fit.consistent) stats_.setShapeObserverModel({});
+  // With the switching edges replayed from the logged bus voltage the observer follows each period
+  // forward through the edges (BlockStatistics::observePeriodForward), and the fit is poor until it
+  // runs (robot_joint_pwm with its delay declared: 56 / 92 times the noise without it, 1.57 / 1.33
+  // with it). There it runs with every consistent fit whose four values are plausible (R_s behind
+  // the inverter is seldom determined to 1 %: held to that, it kept a model from before a 4 %
+  // demagnetisation for seconds, psi_f then 0.2 % high), and, until a consistent fit has given it a
+  // model, with an inconsistent one too; after that an inconsistent fit (a load step in the window)
+  // leaves it the last consistent model rather than dropping it.
+  const bool forward = stats_.edgeModelSet() && stats_.busVoltageLogged();
+  if (all) {
+    stats_.setShapeObserverModel(fit.optimum, true);
+  } else if (forward) {
+    bool take = usable && fit.available && (fit.consistent || !stats_.shapeObserverModelConsistent());
+    for (int p = 0; p < kParameterCount; ++p) take = take && plausible(p, fit.optimum[p]);
+    if (take) stats_.setShapeObserverModel(fit.optimum, fit.consistent);
+  } else if (!fit.consistent) {
+    stats_.setShapeObserverModel({});
+  }
 }
 
 bool OnlineIdentifier::refreshSearchBox() {
