@@ -298,6 +298,7 @@ class BlockStatistics {
     observer_model_consistent_ = consistent;
   }
   bool shapeObserverModelConsistent() const { return observer_model_consistent_ && shapeObserverActive(); }
+  const ParameterVector& shapeObserverModel() const { return observer_model_; }
   std::pair<double, double> observerCurrents() const { return {observer_i_d_, observer_i_q_}; }
   bool shapeObserverActive() const {
     return settings_.inverter_shape_observer_gain > 0 && settings_.inverter_shape_observer_gain < 1 &&

@@ -695,17 +695,28 @@ void OnlineIdentifier::adoptExactFitTerms(const FitCheck& fit) {
   // With the switching edges replayed from the logged bus voltage the observer follows each period
   // forward through the edges (BlockStatistics::observePeriodForward), and the fit is poor until it
   // runs (robot_joint_pwm with its delay declared: 56 / 92 times the noise without it, 1.57 / 1.33
-  // with it). There it runs with every consistent fit whose four values are plausible (R_s behind
-  // the inverter is seldom determined to 1 %: held to that, it kept a model from before a 4 %
-  // demagnetisation for seconds, psi_f then 0.2 % high), and, until a consistent fit has given it a
-  // model, with an inconsistent one too; after that an inconsistent fit (a load step in the window)
-  // leaves it the last consistent model rather than dropping it.
+  // with it). There, until a consistent fit has given it a model, it runs with any fit whose four
+  // values are plausible. After that it keeps its model through inconsistent fits (a load step in
+  // the window) and through consistent ones that agree with it, and takes a consistent fit that
+  // moved a parameter beyond the fit's stated bound (confidence_sigmas standard deviations) from
+  // it: a demagnetisation, a fault, the winding's heating. (Taking every consistent fit put psi_f
+  // outside its stated uncertainty four times as often on the switching-level duty cycle; keeping
+  // the model until a fit determines all four to 1 %, which R_s behind the inverter seldom is, left
+  // psi_f 0.2 % high for seconds after a 4 % demagnetisation.)
   const bool forward = stats_.edgeModelSet() && stats_.busVoltageLogged();
   if (all) {
     stats_.setShapeObserverModel(fit.optimum, true);
   } else if (forward) {
-    bool take = usable && fit.available && (fit.consistent || !stats_.shapeObserverModelConsistent());
+    bool take = usable && fit.available;
     for (int p = 0; p < kParameterCount; ++p) take = take && plausible(p, fit.optimum[p]);
+    if (take && stats_.shapeObserverModelConsistent()) {
+      bool moved = false;
+      const ParameterVector& held = stats_.shapeObserverModel();
+      for (int p = 0; p < kParameterCount; ++p)
+        moved = moved || std::abs(fit.optimum[p] - held[p]) > config_.assessment.confidence_sigmas *
+                                                                  fit.relative_std_known_timing[p] * std::abs(fit.optimum[p]);
+      take = fit.consistent && moved;
+    }
     if (take) stats_.setShapeObserverModel(fit.optimum, fit.consistent);
   } else if (!fit.consistent) {
     stats_.setShapeObserverModel({});
