@@ -292,13 +292,7 @@ class BlockStatistics {
   double edgeV() const { return edge_V_; }     ///< setEdgeModel's V [V]
   /// Parameters of the inverter shape's current observer (WindowSettings::inverter_shape_observer_gain),
   /// set from the data's exact fit; the observer also takes the inverter voltage set above.
-  /// `consistent`: the model is that of a fit consistent with the noise (not a start-up's).
-  void setShapeObserverModel(const ParameterVector& p, bool consistent = false) {
-    observer_model_ = p;
-    observer_model_consistent_ = consistent;
-  }
-  bool shapeObserverModelConsistent() const { return observer_model_consistent_ && shapeObserverActive(); }
-  const ParameterVector& shapeObserverModel() const { return observer_model_; }
+  void setShapeObserverModel(const ParameterVector& p) { observer_model_ = p; }
   std::pair<double, double> observerCurrents() const { return {observer_i_d_, observer_i_q_}; }
   bool shapeObserverActive() const {
     return settings_.inverter_shape_observer_gain > 0 && settings_.inverter_shape_observer_gain < 1 &&
@@ -480,7 +474,6 @@ class BlockStatistics {
   double hold_L_d_ = 0.0, hold_L_q_ = 0.0;
   double edge_L_d_ = 0.0, edge_L_q_ = 0.0, edge_V_ = 0.0;  // setEdgeModel()
   ParameterVector observer_model_{};          // R_s, L_d, L_q, psi_f of the shape's observer (0: none yet)
-  bool observer_model_consistent_ = false;    // observer_model_ from a fit consistent with the noise
   double observer_i_d_ = 0.0, observer_i_q_ = 0.0;  // its currents at the last sample [A]
   double cross_L_dq_ = 0.0, cross_L_qq_ = 0.0;
   bool have_previous_block_ = false;
