@@ -37,6 +37,8 @@
 
 namespace pmsm_param_id {
 
+struct InverterEdgePeriod;  // inverter_edges.hpp
+
 struct WindowSettings {
   double block_length = 0.0;               ///< one fitness block [s]; 0 = max(5 ms, 10 sampling periods)
   double forgetting_time_constant = 0.0;   ///< forgetting of the fitness window [s]; 0 = max(50 ms, 500 periods)
@@ -387,6 +389,11 @@ class BlockStatistics {
   /// gain, starts the next period.
   ObservedPeriod observePeriodForward(const Cumulative& previous, const Sample& s, double dt, double angle_increment,
                                       Phasor at_sample);
+  /// The period after `previous` as the switching edges' models take it: the acting vector in the
+  /// stator frame (the voltage angle turned at omega_e, held from the start or at mid-period), the
+  /// fitted V as the dead time's volt-seconds, the logged bus voltage (NaN without), L_d and L_q.
+  InverterEdgePeriod edgePeriod(const Cumulative& previous, double dt, double omega_e, Phasor mid, double L_d,
+                                double L_q) const;
   /// The observer's next state: the period's end (end_d, end_q) pulled towards the sample by the
   /// gain; a non-finite result restarts it from the sample and drops the period's terms.
   ObservedPeriod finishPeriod(ObservedPeriod out, double end_d, double end_q, const Sample& s, Phasor at_sample);

@@ -244,21 +244,27 @@ void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulativ
   }
 }
 
-Vec2 BlockStatistics::edgeShapeIntegral(const Cumulative& p, const std::array<double, 3>& i_start,
-                                        const std::array<double, 3>& i_end, double dt, Phasor mid,
-                                        const std::array<double, 3>& mid_bend) const {
+InverterEdgePeriod BlockStatistics::edgePeriod(const Cumulative& p, double dt, double omega_e, Phasor mid, double L_d,
+                                              double L_q) const {
   // The acting vector in the stator frame: turned by the drive's voltage angle where the fit
   // estimates one, held in the stator frame from the period's start (stationary hold) or at mid-period.
   Vec2 acting{p.applied_d, p.applied_q};
-  if (voltage_angle_ != 0.0) acting = rotate(acting, voltage_angle_ * p.omega_e * nominal_period_);
+  if (voltage_angle_ != 0.0) acting = rotate(acting, voltage_angle_ * omega_e * nominal_period_);
   InverterEdgePeriod e;
   e.voltage = rotate(acting, settings_.stationary_hold ? Phasor{p.cos_theta, p.sin_theta} : mid);
   e.period = dt;
   e.dead_volt_seconds = edge_V_ * dt;
   e.bus_voltage = busVoltageLogged() ? bus_reference_ * (1.0 + p.bus_ratio) : std::numeric_limits<double>::quiet_NaN();
-  e.L_d = edge_L_d_;
-  e.L_q = edge_L_q_;
+  e.L_d = L_d;
+  e.L_q = L_q;
   e.rotor = mid;
+  return e;
+}
+
+Vec2 BlockStatistics::edgeShapeIntegral(const Cumulative& p, const std::array<double, 3>& i_start,
+                                        const std::array<double, 3>& i_end, double dt, Phasor mid,
+                                        const std::array<double, 3>& mid_bend) const {
+  InverterEdgePeriod e = edgePeriod(p, dt, p.omega_e, mid, edge_L_d_, edge_L_q_);
   e.width = settings_.inverter_zero_crossing_current;
   e.mid_bend = mid_bend;
   // With the bus voltage the period is replayed edge by edge (exact for the chord's currents);
@@ -477,16 +483,7 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriodForward(const Cumu
   const Phasor start{p.cos_theta, p.sin_theta}, mid = advance(start, p.theta_e, 0.5 * angle_increment);
   const double d_start = observer_i_d_, q_start = observer_i_q_;
   const std::array<double, 3> i0 = phaseFromDq(d_start, q_start, start);
-  Vec2 acting{p.applied_d, p.applied_q};
-  if (voltage_angle_ != 0.0) acting = rotate(acting, voltage_angle_ * angle_increment * nominal_period_ / dt);
-  InverterEdgePeriod e;
-  e.voltage = rotate(acting, settings_.stationary_hold ? start : mid);
-  e.period = dt;
-  e.dead_volt_seconds = edge_V_ * dt;
-  e.bus_voltage = bus_reference_ * (1.0 + p.bus_ratio);
-  e.L_d = L_d;
-  e.L_q = L_q;
-  e.rotor = mid;
+  const InverterEdgePeriod e = edgePeriod(p, dt, w, mid, L_d, L_q);
   InverterEdgeForward f;
   f.drift = rotate(Vec2{R * d_start + w * (L_d - L_q) * q_start, R * q_start + w * (L_d - L_q) * d_start + w * psi_f}, mid);
   const Vec2 emf = rotate(Vec2{0.0, w * psi_f}, mid);
