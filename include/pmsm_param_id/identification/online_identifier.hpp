@@ -176,7 +176,13 @@ class OnlineIdentifier {
   SampleStatus admit(const Sample& s, bool check_step, SampleStatus status);
   SampleStatus processTimed(const Sample& s, SampleStatus status);
   bool tryStart();
-  void adoptExactFitTerms(const FitCheck& fit);
+  /// Takes the exact fit's drive terms (inverter voltage, voltage angle, the hold's and the edges'
+  /// inductances, the observer's model) into `stats`' model, whose settings say which it has.
+  void adoptExactFitTerms(const FitCheck& fit, BlockStatistics& stats) const;
+  void adoptExactFitTerms(const FitCheck& fit) { adoptExactFitTerms(fit, stats_); }
+  /// After the switch, where the chosen delay's fit is poor: the other delay's statistics, run
+  /// beside the chosen ones, and taken where they fit clearly better (watchDriveModel).
+  void watchOtherDelay(const FitCheck& fit);
   /// Nothing about the drive declared: switches to the real drive's model where the data show one.
   void watchDriveModel();
   /// Once the logged angle's quantum is decided: the flux columns' smoothing (automatic, with one).
@@ -290,6 +296,11 @@ class OnlineIdentifier {
     bool continuity_broken = false;
   };
   std::deque<RecentSample> recent_;
+  // The other whole-sample delay's statistics, run beside the chosen model's from the switch while
+  // the chosen one's fit is poor (watchOtherDelay), and since when [s].
+  std::optional<BlockStatistics> other_delay_;
+  double other_delay_since_ = 0.0;
+  std::string other_delay_note_;  // the drive model's note without the other delay's
 };
 
 /// Samples kept for a drive-model change (2 s at 10 kHz; about 1.4 MB per identifier).

@@ -95,6 +95,10 @@ void OnlineIdentifier::watchDriveModel() {
   const FitCheck fit = checkFit(stats_, config_.assessment, box_.valid ? box_.centre : kGenericCentre,
                                 drive_model_switched_, config_.inverter.estimate_voltage, stats_.inverterVoltage(), false);
   if (!fit.available) return;
+  if (other_delay_) {
+    watchOtherDelay(fit);
+    return;
+  }
   const MisfitCause kind = fit.likely_cause_kind;
   // A drive effect stays; a change of the motor inside the window (a fault, a demagnetisation)
   // misfits too, and a drive effect may fit part of it, but only until the window has forgotten the
@@ -169,6 +173,7 @@ void OnlineIdentifier::watchDriveModel() {
   };
   char buf[240];
   std::optional<BlockStatistics> chosen;  // the chosen width's statistics of the recent samples
+  std::optional<BlockStatistics> other_delay;  // the other delay's, where they are to run beside them
   if (!drive_model_switched_) {
     // The delay from the fit with the drive's effects (a log of the applied voltage fits 0, a log of
     // the reference most often 1): 0 only where it lies below half a sample by three standard
@@ -211,11 +216,21 @@ void OnlineIdentifier::watchDriveModel() {
       }
       BlockStatistics trial(other);
       const ModelTrial t = replayModel(other, start, chosen->edgeV(), trial);
-      if (t.ratio < best.relevance * best.ratio || (t.consistent && !best.consistent) ||
-          (!best.consistent && t.ratio < best.ratio && t.window_ratio < best.window_ratio)) {
+      const bool take = t.ratio < best.relevance * best.ratio || (t.consistent && !best.consistent) ||
+                        (!best.consistent && t.ratio < best.ratio && t.window_ratio < best.window_ratio);
+      const bool settled = take ? t.consistent : best.consistent;
+      if (take) {
         w = other;
-        chosen = std::move(trial);
+        std::swap(*chosen, trial);  // the trial's statistics now hold the delay not taken
       }
+      // Where neither fits the recent samples at the noise level, each was replayed with the edges'
+      // shape taken from the measured currents' chords (the shape's observer starts only from a fit
+      // of the new model), and which delay fits shows only once each has followed its own fits for
+      // a while (robot_joint_pwm seed 1: at the switch delay 0 read slow 163 / window 91 against
+      // 1's 393 / 173; 0.35 s later, each following its own fits, the fitness window 41.6 against
+      // 11, and 1 is the drive's). So the delay not taken runs beside the one taken
+      // (watchOtherDelay).
+      if (!settled) other_delay = std::move(trial);
     }
     config_.inverter.estimate_voltage = true;
     drive_model_switched_ = true;
@@ -234,6 +249,55 @@ void OnlineIdentifier::watchDriveModel() {
   }
   drive_model_note_ = buf;
   adoptWindow(w, chosen);
+  if (other_delay) {
+    other_delay_ = std::move(other_delay);
+    other_delay_since_ = last_t_;
+    other_delay_note_ = drive_model_note_;
+    std::snprintf(buf, sizeof buf, "; delay %d runs beside it for %.3g s, taken where it fits clearly better",
+                  1 - w.voltage_delay_samples, kDriveEffectWindows * stats_.forgettingTimeConstant());
+    drive_model_note_ += buf;
+  }
+}
+
+void OnlineIdentifier::watchOtherDelay(const FitCheck& fit) {
+  // The other delay's statistics follow their own fits, as the chosen ones do (adoptExactFitTerms
+  // in refreshSearchBox), at the watch's pace. Where the chosen delay's fitness window passes the
+  // fit check, they stop; after kDriveEffectWindows forgetting time constants the other delay is
+  // taken where its fitness window passes the check, or leaves at most kDriveEffectAdvantage of
+  // the chosen one's residual (d + q), else they stop; after that decision the delay is not turned
+  // round again.
+  BlockStatistics& other = *other_delay_;
+  const FitCheck f = checkFit(other, config_.assessment, fit.optimum, false, true, other.inverterVoltage(), false);
+  if (f.available) adoptExactFitTerms(f, other);
+  if (fit.consistent) {
+    other_delay_.reset();
+    drive_model_note_ = other_delay_note_;
+    return;
+  }
+  if (last_t_ - other_delay_since_ < kDriveEffectWindows * stats_.forgettingTimeConstant()) return;
+  const double chosen_ratio = fit.fit_ratio_d + fit.fit_ratio_q, other_ratio = f.fit_ratio_d + f.fit_ratio_q;
+  delay_flipped_ = true;
+  const int other_delay = 1 - config_.window.voltage_delay_samples;
+  char buf[400];
+  if (!(f.available && (f.consistent || other_ratio < kDriveEffectAdvantage * chosen_ratio))) {
+    std::snprintf(buf, sizeof buf,
+                  "%s; delay %d, run beside it from t = %.4g to %.4g s, not taken (it left the fitness window %.3g "
+                  "times the noise against %.3g)",
+                  other_delay_note_.c_str(), other_delay, other_delay_since_, last_t_, other_ratio, chosen_ratio);
+    drive_model_note_ = buf;
+    other_delay_.reset();
+    return;
+  }
+  WindowSettings w = config_.window;
+  w.voltage_delay_samples = other_delay;
+  std::snprintf(buf, sizeof buf,
+                "%s; delay %d from t = %.4g s (run beside delay %d from t = %.4g s, it left the fitness window "
+                "%.3g times the noise against %.3g)",
+                other_delay_note_.c_str(), w.voltage_delay_samples, last_t_, config_.window.voltage_delay_samples,
+                other_delay_since_, other_ratio, chosen_ratio);
+  drive_model_note_ = buf;
+  std::optional<BlockStatistics> taken = std::move(other_delay_);
+  adoptWindow(w, taken);
 }
 
 void OnlineIdentifier::adoptWindow(const WindowSettings& w, std::optional<BlockStatistics>& chosen) {
@@ -249,6 +313,7 @@ void OnlineIdentifier::adoptWindow(const WindowSettings& w, std::optional<BlockS
       stats_.add(r.sample);
     }
   }
+  other_delay_.reset();
   box_ = SearchBox{};
   fit_cache_ = FitCheck{};
   fit_blocks_ = ~0ull;
@@ -446,6 +511,7 @@ void OnlineIdentifier::reset() {
   angle_quantum_.reset();
   angle_note_.clear();
   recent_.clear();
+  other_delay_.reset();
   delay_flipped_ = false;
   drive_checks_.clear();
   quiet_drive_checks_ = 0;
@@ -484,6 +550,7 @@ void OnlineIdentifier::watchAngleQuantum() {
   if (m < 1) return;
   config_.window.angle_smoothing_samples = m;
   stats_.setAngleSmoothing(m);
+  if (other_delay_) other_delay_->setAngleSmoothing(m);
   char buf[160];
   std::snprintf(buf, sizeof buf, "angle quantised to %.3g mrad (an encoder): the flux's rotation from its mean over %d samples",
                 1e3 * q, 2 * m + 1);
@@ -520,6 +587,7 @@ SampleStatus OnlineIdentifier::process(const Sample& s) {
       } else {  // the rate changed: blocks of the new length from here on
         ++counters_.period_changes;
         recent_.clear();  // blocks of the old length
+        other_delay_.reset();
         stats_.configure(period_.nominal());
         broken_ = true;
         status = SampleStatus::PeriodChanged;
@@ -560,6 +628,10 @@ SampleStatus OnlineIdentifier::processTimed(const Sample& s, SampleStatus status
   angle_logged_ = std::isfinite(s.theta_e);
   if (angle_quantum_.add(s.theta_e)) watchAngleQuantum();
   const bool new_block = stats_.add(s);
+  if (other_delay_) {
+    if (broken_) other_delay_->breakContinuity();
+    other_delay_->add(s);
+  }
   if ((config_.automatic_drive_model && !(drive_model_switched_ && delay_flipped_)) || widthPending()) {
     recent_.push_back({s, broken_});
     if (recent_.size() > kDriveModelReplaySamples) recent_.pop_front();
@@ -659,26 +731,27 @@ bool OnlineIdentifier::tryStart() {
   return true;
 }
 
-void OnlineIdentifier::adoptExactFitTerms(const FitCheck& fit) {
+void OnlineIdentifier::adoptExactFitTerms(const FitCheck& fit, BlockStatistics& stats) const {
+  const WindowSettings& window = stats.settings();
   // A saturating machine's L_qq and L_dq (the swarm's fitness takes them as known).
   if (fit.cross_saturation_modelled && std::isfinite(fit.L_qq) && fit.L_qq > 0 && std::isfinite(fit.L_dq))
-    stats_.setCrossSaturation(fit.L_dq, fit.L_qq);
+    stats.setCrossSaturation(fit.L_dq, fit.L_qq);
   // The stationary hold's bending of the currents needs the inductances: the data's, once determined.
-  if (config_.window.stationary_hold && fit.available && fitDetermines(fit, kLd, 0.1) && fitDetermines(fit, kLq, 0.1))
-    stats_.setHoldInductances(fit.optimum[kLd], fit.optimum[kLq]);
+  if (window.stationary_hold && fit.available && fitDetermines(fit, kLd, 0.1) && fitDetermines(fit, kLq, 0.1))
+    stats.setHoldInductances(fit.optimum[kLd], fit.optimum[kLq]);
   // The drive's voltage angle, likewise taken as known by the swarm's fitness (a direction the
   // window leaves open keeps the fit's value on its ridge: the parameters along it are then not
   // identified, whichever value the fitness takes).
   if (fit.voltage_angle_modelled)
-    stats_.setVoltageAngle(std::isfinite(fit.voltage_angle) && std::abs(fit.voltage_angle) < 4.0 ? fit.voltage_angle : 0.0);
+    stats.setVoltageAngle(std::isfinite(fit.voltage_angle) && std::abs(fit.voltage_angle) < 4.0 ? fit.voltage_angle : 0.0);
   // The swarm's fitness (and RLS, EKF) take the data's estimate of the inverter voltage as known:
   // the paper's swarm searches four dimensions; V is profiled out by the exact fit.
   if (!fit.inverter_modelled) return;
   const double V = fit.inverter_voltage;
   const bool usable = std::isfinite(V) && V > 0 && fit.inverter_relative_std < 0.3 &&
                       std::isfinite(fit.inverter_wide_share) && std::isfinite(fit.inverter_bus_share);
-  stats_.setInverterVoltage(usable ? V : 0.0, usable ? fit.inverter_wide_share : 0.0,
-                            usable ? fit.inverter_bus_share : 0.0);
+  stats.setInverterVoltage(usable ? V : 0.0, usable ? fit.inverter_wide_share : 0.0,
+                           usable ? fit.inverter_bus_share : 0.0);
   // The inverter shape's current observer runs the data's model: once all four are determined to
   // 1 % by a fit that is consistent. A fit that is not drops it, and the shape takes the measured
   // currents again: an observer run with a wrong model feeds the fit wrong shapes, and the fit
@@ -690,8 +763,8 @@ void OnlineIdentifier::adoptExactFitTerms(const FitCheck& fit) {
   for (int p = 0; p < kParameterCount; ++p)
     all = all && fit.determined[p] && fit.relative_std_known_timing[p] <= 0.01 && plausible(p, fit.optimum[p]);
   // The switching edges' ripple needs the inductances and V: the data's, once determined to 10 %.
-  if (config_.window.inverter_edge_shape && usable && fitDetermines(fit, kLd, 0.1) && fitDetermines(fit, kLq, 0.1))
-    stats_.setEdgeModel(fit.optimum[kLd], fit.optimum[kLq], V);
+  if (window.inverter_edge_shape && usable && fitDetermines(fit, kLd, 0.1) && fitDetermines(fit, kLq, 0.1))
+    stats.setEdgeModel(fit.optimum[kLd], fit.optimum[kLq], V);
   // With the switching edges replayed from the logged bus voltage the observer follows each period
   // forward through the edges (BlockStatistics::observePeriodForward), and the fit is poor until it
   // runs (robot_joint_pwm with its delay declared: 56 / 92 times the noise without it, 1.57 / 1.33
@@ -702,15 +775,15 @@ void OnlineIdentifier::adoptExactFitTerms(const FitCheck& fit) {
   // keeping it until a fit determines all four to 1 %, which R_s behind the inverter seldom is, put
   // fewer psi_f estimates outside their stated uncertainty on the duty cycle but left psi_f 0.2 %
   // high for seconds after a 4 % demagnetisation.)
-  const bool forward = stats_.edgeModelSet() && stats_.busVoltageLogged();
+  const bool forward = stats.edgeModelSet() && stats.busVoltageLogged();
   if (all) {
-    stats_.setShapeObserverModel(fit.optimum);
+    stats.setShapeObserverModel(fit.optimum);
   } else if (forward) {
     bool take = usable && fit.available;
     for (int p = 0; p < kParameterCount; ++p) take = take && plausible(p, fit.optimum[p]);
-    if (take) stats_.setShapeObserverModel(fit.optimum);
+    if (take) stats.setShapeObserverModel(fit.optimum);
   } else if (!fit.consistent) {
-    stats_.setShapeObserverModel({});
+    stats.setShapeObserverModel({});
   }
 }
 
