@@ -181,7 +181,7 @@ class OnlineIdentifier {
   void adoptExactFitTerms(const FitCheck& fit, BlockStatistics& stats) const;
   void adoptExactFitTerms(const FitCheck& fit) { adoptExactFitTerms(fit, stats_); }
   /// After the switch, where the chosen delay's fit is poor: the other delay's statistics, run
-  /// beside the chosen ones, and taken where they fit clearly better (watchDriveModel).
+  /// beside the chosen ones until one of the two fits clearly better, and taken where they do.
   void watchOtherDelay(const FitCheck& fit);
   /// Nothing about the drive declared: switches to the real drive's model where the data show one.
   void watchDriveModel();

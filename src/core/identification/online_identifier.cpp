@@ -60,6 +60,9 @@ namespace {
 // How long a drive effect's misfit must last before the drive model changes, in forgetting time
 // constants of the fitness window: a motor's step change has left the window to e^-6 = 0.25 %.
 constexpr double kDriveEffectWindows = 6.0;
+// Where neither delay fits at the switch and the two run beside each other, at most this many
+// forgetting time constants until one leaves at most kDriveEffectAdvantage of the other's residual.
+constexpr double kOtherDelayWindows = 20.0;
 // The drive's effects (inverter voltage, voltage angle, delay) must leave at most this
 // fraction of the mean square residual that the paper's model, and a cross-saturation inductance,
 // leave.
@@ -253,8 +256,9 @@ void OnlineIdentifier::watchDriveModel() {
     other_delay_ = std::move(other_delay);
     other_delay_since_ = last_t_;
     other_delay_note_ = drive_model_note_;
-    std::snprintf(buf, sizeof buf, "; delay %d runs beside it for %.3g s, taken where it fits clearly better",
-                  1 - w.voltage_delay_samples, kDriveEffectWindows * stats_.forgettingTimeConstant());
+    std::snprintf(buf, sizeof buf, "; delay %d runs beside it (%.3g to %.3g s), taken where it fits clearly better",
+                  1 - w.voltage_delay_samples, kDriveEffectWindows * stats_.forgettingTimeConstant(),
+                  kOtherDelayWindows * stats_.forgettingTimeConstant());
     drive_model_note_ += buf;
   }
 }
@@ -262,10 +266,13 @@ void OnlineIdentifier::watchDriveModel() {
 void OnlineIdentifier::watchOtherDelay(const FitCheck& fit) {
   // The other delay's statistics follow their own fits, as the chosen ones do (adoptExactFitTerms
   // in refreshSearchBox), at the watch's pace. Where the chosen delay's fitness window passes the
-  // fit check, they stop; after kDriveEffectWindows forgetting time constants the other delay is
-  // taken where its fitness window passes the check, or leaves at most kDriveEffectAdvantage of
-  // the chosen one's residual (d + q), else they stop; after that decision the delay is not turned
-  // round again.
+  // fit check, they stop. From kDriveEffectWindows forgetting time constants on, the other delay
+  // is taken where its fitness window passes the check or leaves at most kDriveEffectAdvantage of
+  // the chosen one's residual (d + q); they stop where the chosen one leaves at most that of the
+  // other's, or after kOtherDelayWindows. After that decision the delay is not turned round again.
+  // (Decided at six time constants whatever the residuals, the drive's delay 0 on robot_joint_pwm's
+  // variants left 0.45-0.69 of delay 1's residual there and was taken in 2 of 9 runs; run on until
+  // clear, in 9 of 9, 0.35-0.4 s after the switch.)
   BlockStatistics& other = *other_delay_;
   const FitCheck f = checkFit(other, config_.assessment, fit.optimum, false, true, other.inverterVoltage(), false);
   if (f.available) adoptExactFitTerms(f, other);
@@ -274,12 +281,16 @@ void OnlineIdentifier::watchOtherDelay(const FitCheck& fit) {
     drive_model_note_ = other_delay_note_;
     return;
   }
-  if (last_t_ - other_delay_since_ < kDriveEffectWindows * stats_.forgettingTimeConstant()) return;
+  const double tau = stats_.forgettingTimeConstant(), ran = last_t_ - other_delay_since_;
+  if (ran < kDriveEffectWindows * tau) return;
   const double chosen_ratio = fit.fit_ratio_d + fit.fit_ratio_q, other_ratio = f.fit_ratio_d + f.fit_ratio_q;
+  const bool other_better = f.available && (f.consistent || other_ratio < kDriveEffectAdvantage * chosen_ratio);
+  const bool chosen_better = !f.available || chosen_ratio < kDriveEffectAdvantage * other_ratio;
+  if (!other_better && !chosen_better && ran < kOtherDelayWindows * tau) return;  // not yet clear either way
   delay_flipped_ = true;
   const int other_delay = 1 - config_.window.voltage_delay_samples;
   char buf[400];
-  if (!(f.available && (f.consistent || other_ratio < kDriveEffectAdvantage * chosen_ratio))) {
+  if (!other_better) {
     std::snprintf(buf, sizeof buf,
                   "%s; delay %d, run beside it from t = %.4g to %.4g s, not taken (it left the fitness window %.3g "
                   "times the noise against %.3g)",
