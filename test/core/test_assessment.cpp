@@ -209,7 +209,7 @@ TEST(Assessment, VoltageOneSampleLateIsAPoorFitUntilTheDelayIsDeclared) {
   samples.pop_back();
   const Estimate e = identify(samples, "rls");
   for (int p = 0; p < kParameterCount; ++p) EXPECT_FALSE(e.identifiable[p]) << e.reason[p];
-  EXPECT_NE(e.fit.likely_cause.find("later than declared"), std::string::npos) << e.fit.likely_cause;
+  EXPECT_NE(e.fit.likely_cause.find("later than the model's delay"), std::string::npos) << e.fit.likely_cause;
   IdentifierConfig declared;
   declared.window.voltage_delay_samples = 1;
   for (const char* method : {"rls", "fbdapso"}) {
@@ -1943,7 +1943,7 @@ TEST(DriveModel, ADeclaredDelayIsCheckedAgainstALogOfTheAppliedVoltage) {
         EXPECT_FALSE(e.fit.consistent) << method;
         for (int p = 0; p < kParameterCount; ++p)
           EXPECT_EQ(e.status[p], ParameterStatus::PoorFit) << method << " " << parameterNames()[p] << ": " << e.reason[p];
-        EXPECT_NE(e.fit.likely_cause.find("earlier than declared"), std::string::npos) << method << ": " << e.fit.likely_cause;
+        EXPECT_NE(e.fit.likely_cause.find("earlier than the model's delay"), std::string::npos) << method << ": " << e.fit.likely_cause;
       } else {
         EXPECT_TRUE(e.fit.consistent) << method << ": " << e.fit.likely_cause;
         EXPECT_TRUE(e.identifiable[kLq] && e.identifiable[kPsiF]) << method << " " << e.reason[kLq] << " / " << e.reason[kPsiF];

@@ -175,7 +175,7 @@ Misfit misspecification(const WindowSums& window, const AssessmentSettings& a, c
     else s << start4, extra;
     return s;
   };
-  // A voltage that acts a sample later or earlier than declared.
+  // A voltage that acts a sample later or earlier than the model's delay.
   {
     const Eigen::VectorXd s = startWith(0.0);
     const BlockFit f = BlockLeastSquares::fit(window, alternative(LinearBlockModel::delay()), s, {}, a.variance_inflation);
@@ -186,9 +186,11 @@ Misfit misspecification(const WindowSums& window, const AssessmentSettings& a, c
              fractional ? format("the logged voltage does not hold over the logged period (it fits %.2g samples "
                                  "of delay): a log decimated from a faster control loop? log every control period",
                                  d)
-             : format(d > 0 ? "the voltages act %.2g samples later than declared: raise time.voltage_delay_samples "
-                              "(most drives apply a voltage one period after computing it)"
-                            : "the voltages act %.2g samples earlier than declared: lower time.voltage_delay_samples",
+             : format(d > 0 ? "the voltages act %.2g samples later than the model's delay (declared, or chosen "
+                              "from the data): raise time.voltage_delay_samples (most drives apply a voltage one "
+                              "period after computing it)"
+                            : "the voltages act %.2g samples earlier than the model's delay (declared, or chosen "
+                              "from the data): lower time.voltage_delay_samples",
                       std::abs(d)),
              fractional ? MisfitCause::Other : MisfitCause::Delay,
              format(fractional ? "a fractional delay (%.2g samples)" : "a delay of %.2g samples", d), d);
