@@ -174,6 +174,18 @@ inline double smoothSign(double x) {
   return std::copysign((1.0 - e) / (1.0 + e), x);
 }
 
+/// The mean of tanh(i / width) over a period by Simpson's rule, from the current at its start, its
+/// middle and its end.
+inline double simpsonSmoothSign(double i_start, double i_mid, double i_end, double width) {
+  return (smoothSign(i_start / width) + 4.0 * smoothSign(i_mid / width) + smoothSign(i_end / width)) / 6.0;
+}
+
+/// The wide shape's width: twice the zero-crossing width, or without one 2 % of the current (d, q)
+/// (a sharp sign change) [A].
+inline double wideShapeWidth(double width, double d, double q) {
+  return width > 0 ? 2.0 * width : 0.02 * std::sqrt(d * d + q * q) + 1e-12;
+}
+
 /// inverterShape() with the logged angle, given as its phasor: the phase currents from the measured
 /// d-q currents, then the d-q image of their signs.
 void inverterShapeAt(const Sample& s, Phasor angle, double& shape_d, double& shape_q, std::array<double, 3>* phase) {
@@ -222,7 +234,7 @@ void BlockStatistics::inverterShapeIntegral(const Cumulative& p, const Cumulativ
         const auto doubled = [](double t) { return 2.0 * t / (1.0 + t * t); };
         mean[k] = (doubled(ta) + 4.0 * doubled(tm) + doubled(tb)) / 6.0;
       } else {
-        mean[k] = (smoothSign(ia / width) + 4.0 * smoothSign(i_mid / width) + smoothSign(ib / width)) / 6.0;
+        mean[k] = simpsonSmoothSign(ia, i_mid, ib, width);
       }
       continue;
     }
@@ -304,7 +316,7 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
   // observer's instructions (FBDAPSO on industrial_pwm, doc/performance.md).
   const auto evaluate = [&](double d, double q, double cos_t, double sin_t) __attribute__((noinline)) {
     const std::array<double, 3> i = phaseFromDq(d, q, Phasor{cos_t, sin_t});
-    const double wide = width > 0 ? 2.0 * width : 0.02 * std::sqrt(d * d + q * q) + 1e-12;
+    const double wide = wideShapeWidth(width, d, q);
     static const double rows[3][2] = {{1.0, 0.0}, {-0.5, 0.8660254037844386}, {-0.5, -0.8660254037844386}};
     std::array<double, 3> narrow{}, wide_shape{};
     double M[2][2] = {{0.0, 0.0}, {0.0, 0.0}};
@@ -502,10 +514,9 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriodForward(const Cumu
   out.missed_d = path.x - 0.5 * dt * (d_start + end.x);
   out.missed_q = path.y - 0.5 * dt * (q_start + end.y);
   const double width = settings_.inverter_zero_crossing_current;
-  const double wide = width > 0 ? 2.0 * width : 0.02 * std::hypot(end.x, end.y) + 1e-12;
+  const double wide = wideShapeWidth(width, end.x, end.y);
   std::array<double, 3> shape{};
-  for (std::size_t k = 0; k < 3; ++k)
-    shape[k] = (smoothSign(i0[k] / wide) + 4.0 * smoothSign(0.5 * (i0[k] + f.i_end[k]) / wide) + smoothSign(f.i_end[k] / wide)) / 6.0;
+  for (std::size_t k = 0; k < 3; ++k) shape[k] = simpsonSmoothSign(i0[k], 0.5 * (i0[k] + f.i_end[k]), f.i_end[k], wide);
   const Vec2 wv = rotate(clarke(shape[0], shape[1], shape[2]), conjugate(mid));
   out.wide_d = dt * wv.x;
   out.wide_q = dt * wv.y;
@@ -725,7 +736,7 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
     // The same with twice the width (a sharp sign change: a width of 2 % of the current): the
     // second shape of the mix the zero-crossing shape is fitted as (nobody logs the true width).
     if (settings_.inverter_wide_shape) {
-      const double wide = width > 0 ? 2.0 * width : 0.02 * std::sqrt(c.i_d * c.i_d + c.i_q * c.i_q) + 1e-12;
+      const double wide = wideShapeWidth(width, c.i_d, c.i_q);
       if (observed.valid) {
         inv_d = observed.wide_d;
         inv_q = observed.wide_q;
