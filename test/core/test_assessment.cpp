@@ -1429,8 +1429,9 @@ TEST(SlowWindow, APsiFFallIsNotReportedIdentifiedByTheLaggingSlowWindow) {
 // went to the box's lower face with psi_f 7 % high to compensate, and stayed there for 1.3 s after the
 // fit had settled (seed 2), along a ridge the cycles' velocity kicks do not climb; the
 // demagnetisation was raised 1.365 s after the fall. A best on a face the data's determined optimum
-// lies well inside starts the swarm again: psi_f identified within 0.6 s of the fall, the alarm
-// within 1 s.
+// lies well inside starts the swarm again: psi_f identified within 0.7 s of the fall (0.61 s: the
+// fit must then hold consistent for two window time constants behind the shape's observer before
+// anything is identified), the alarm within 1 s.
 TEST(Swarm, ASwarmHeldOnAFaceTheDataLeftStartsAgain) {
   const ColdStartRun run = coldStartRun("real_drive_demagnetisation.yaml", 15.5, "fbdapso", 2);
   const auto& data = run.data;
@@ -1448,7 +1449,7 @@ TEST(Swarm, ASwarmHeldOnAFaceTheDataLeftStartsAgain) {
     if (data[k].sample.t > fall + 0.25 && right && identified_at < 0) identified_at = data[k].sample.t;
   }
   EXPECT_GT(identified_at, fall);
-  EXPECT_LT(identified_at - fall, 0.6) << "psi_f identified again at " << identified_at << " s";
+  EXPECT_LT(identified_at - fall, 0.7) << "psi_f identified again at " << identified_at << " s";
   EXPECT_GT(raised_at, fall);
   EXPECT_LT(raised_at - fall, 1.0) << "demagnetisation raised at " << raised_at << " s";
 }
@@ -1687,6 +1688,41 @@ TEST(DriveModel, TheSameJointWithDelayZeroFindsItToo) {
   expectTheJointFits(e, data);
 }
 
+TEST(DriveModel, BehindTheObserverNothingIsIdentifiedUntilTheFitHasHeldConsistent) {
+  // The robot joint with 1.0 us of dead time and no device drops (seed 7): the observer's blocks
+  // and the fit settle together, and the fit is first consistent about 50 ms before the log ends,
+  // its L_d still 2.3 % high and falling. Nothing is identified until the fit has been consistent
+  // for two window time constants, with the reason; with the hold off (0), L_d is identified 2.3 %
+  // off, the case it exists for.
+  Scenario s = test_helpers::scenario("robot_joint_pwm.yaml");
+  s.inverter.dead_time = 1.0e-6;
+  s.inverter.device_drop = 0.0;
+  s.seed = 7;
+  const auto data = test_helpers::run(s);
+  const ParameterVector& truth = data.back().truth;
+  const Estimate e = identify(samplesOf(data), "wls", IdentifierConfig{});
+  EXPECT_TRUE(e.fit.consistent) << e.fit.likely_cause;
+  for (int p = 0; p < kParameterCount; ++p) EXPECT_FALSE(e.identifiable[p]) << parameterNames()[p] << ": " << e.reason[p];
+  for (int p : {kLd, kPsiF})  // the two the data determine here (R_s and L_q: not excited, their own reasons)
+    EXPECT_NE(e.reason[p].find("the fit has been consistent for"), std::string::npos) << e.reason[p];
+  IdentifierConfig at_once;
+  at_once.assessment.observer_settling_time_constants = 0.0;
+  const Estimate off = identify(samplesOf(data), "wls", at_once);
+  EXPECT_TRUE(off.identifiable[kLd]) << off.reason[kLd];
+  EXPECT_GT(std::abs(off.parameters[kLd] / truth[kLd] - 1.0), 0.02);
+}
+
+TEST(DriveModel, TheObserversSettlingKeyReadsAndChecks) {
+  EXPECT_DOUBLE_EQ(IdentifierConfig{}.assessment.observer_settling_time_constants, 2.0);
+  const std::string off = test_helpers::writeTemp("settle_off.yaml", "assessment: {observer_settling_time_constants: 0}\n");
+  EXPECT_DOUBLE_EQ(loadIdentifierConfig(off).assessment.observer_settling_time_constants, 0.0);
+  const std::string longer = test_helpers::writeTemp("settle_long.yaml", "assessment: {observer_settling_time_constants: 4.5}\n");
+  EXPECT_DOUBLE_EQ(loadIdentifierConfig(longer).assessment.observer_settling_time_constants, 4.5);
+  const std::string negative = test_helpers::writeTemp("settle_bad.yaml", "assessment: {observer_settling_time_constants: -1}\n");
+  test_helpers::expectRefusedNaming<ConfigError>([&] { loadIdentifierConfig(negative); },
+                                                 "assessment.observer_settling_time_constants", "a negative settling time");
+}
+
 TEST(DriveModel, AnIdealDriveAndAMotorsStepChangeKeepThePapersModel) {
   // The paper's model fits an ideal drive; a demagnetisation step misfits the window only until it
   // is forgotten, and must not switch the model.
@@ -1752,11 +1788,13 @@ TEST(DriveModel, TheDataChooseTheDelayOfTheLogsConvention) {
   // The paper's motor behind the switching-level inverter (k_p = 1.5): a log of the reference
   // computed at t_k (the voltage acts a period later) and a log of the voltage applied over each
   // period. The drive model chosen from the data takes delay 1 for the first and 0 for the second,
-  // and identifies L_q and psi_f within their stated uncertainty in both.
+  // and identifies L_q and psi_f within their stated uncertainty in both. (0.8 s: the reference
+  // log's fit becomes consistent at about 0.6 s, and behind the shape's observer it must hold for
+  // two window time constants before anything is identified.)
   for (const bool applied : {false, true}) {
     Scenario s = test_helpers::scenario("wc1_applied_log.yaml");
     s.inverter.log_applied_voltage = applied;
-    s.duration = 0.6;
+    s.duration = 0.8;
     const auto data = test_helpers::run(s);
     const Estimate e = identify(samplesOf(data), "wls", IdentifierConfig{});
     const std::string label = applied ? "applied" : "reference";

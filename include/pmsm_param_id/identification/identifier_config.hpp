@@ -44,6 +44,9 @@ struct AssessmentSettings {
   double max_fit_ratio = 4.0;              ///< poor fit: mean square residual > this x what noise explains [-]
   double fit_floor_relative = 1e-4;        ///< residual RMS below this x RMS current is always a fit [-]
   double min_relative_uncertainty = 0.002; ///< the stated uncertainty is never below this (sampling effects) [-]
+  /// Behind a switching inverter's forward current observer: nothing is identified until the fit has
+  /// been consistent for this many window time constants (0: at once) [-]
+  double observer_settling_time_constants = 2.0;
 };
 
 /// What the identifier knows about the drive's inverter (doc/algorithm.md section 8).

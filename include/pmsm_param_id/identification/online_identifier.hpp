@@ -183,6 +183,9 @@ class OnlineIdentifier {
   /// After the switch, where the chosen delay's fit is poor: the other delay's statistics, run
   /// beside the chosen ones until one of the two fits clearly better, and taken where they do.
   void watchOtherDelay(const FitCheck& fit);
+  /// Behind the shape's forward observer: nothing identified until the fit has been consistent for
+  /// assessment.observer_settling_time_constants window time constants.
+  void holdWhileObserverSettles(Estimate& e) const;
   /// Nothing about the drive declared: switches to the real drive's model where the data show one.
   void watchDriveModel();
   /// Once the logged angle's quantum is decided: the flux columns' smoothing (automatic, with one).
@@ -296,6 +299,7 @@ class OnlineIdentifier {
     bool continuity_broken = false;
   };
   std::deque<RecentSample> recent_;
+  double consistent_since_s_ = std::numeric_limits<double>::quiet_NaN();  ///< the exact fit consistent since [s]
   // The other whole-sample delay's statistics, run beside the chosen model's from the switch while
   // the chosen one's fit is poor (watchOtherDelay), and since when [s].
   std::optional<BlockStatistics> other_delay_;

@@ -138,6 +138,8 @@ IdentifierConfig loadIdentifierConfig(const std::string& path) {
   c.assessment.fit_floor_relative = y.positive("assessment.fit_floor_relative", c.assessment.fit_floor_relative);
   c.assessment.min_relative_uncertainty =
       y.positive("assessment.min_relative_uncertainty", c.assessment.min_relative_uncertainty);
+  c.assessment.observer_settling_time_constants = y.nonNegative(
+      "assessment.observer_settling_time_constants", c.assessment.observer_settling_time_constants, " (0 = at once)");
   c.time.sample_period = y.number("time.sample_period", c.time.sample_period);
   c.time.max_gap_periods = y.number("time.max_gap_periods", c.time.max_gap_periods);
   c.window.voltage_delay_samples = static_cast<int>(y.integer("time.voltage_delay_samples", 0, 0, 1));

@@ -517,6 +517,7 @@ void OnlineIdentifier::reset() {
     stats_ = BlockStatistics(windowFor(config_));
   }
   width_running_since_ = std::numeric_limits<double>::quiet_NaN();
+  consistent_since_s_ = std::numeric_limits<double>::quiet_NaN();
   drive_model_switched_ = false;
   drive_model_note_.clear();
   angle_quantum_.reset();
@@ -827,6 +828,9 @@ bool OnlineIdentifier::refreshSearchBox() {
   if (fit.consistent) {
     watched_optimum_ = fit.optimum;
     have_watched_ = true;
+    if (!std::isfinite(consistent_since_s_)) consistent_since_s_ = last_t_;
+  } else {
+    consistent_since_s_ = std::numeric_limits<double>::quiet_NaN();
   }
   const double inner = std::sqrt(config_.search.span_factor);
   ParameterVector centre = box_.centre;
@@ -993,6 +997,7 @@ Estimate OnlineIdentifier::estimate() const {
   e.status = a.status;
   e.reason = a.reason;
   e.relative_uncertainty = a.relative_uncertainty;
+  holdWhileObserverSettles(e);
   // On a saturating machine the estimates stand for one operating point (section 11). A window
   // whose q current moved across more than a cell of the map (a load change) fits the extended
   // model's lines in i_q through several points, which is no point's L_d, L_q or psi_f.
@@ -1156,6 +1161,31 @@ Estimate OnlineIdentifier::estimate() const {
   e.fitness = positive ? fitnessAt(e.parameters) : std::numeric_limits<double>::quiet_NaN();
   e.operating_point = op;
   return e;
+}
+
+void OnlineIdentifier::holdWhileObserverSettles(Estimate& e) const {
+  // The shape's observer runs each fit's model forward through the switching edges, and the fit is
+  // poor until it runs (adoptExactFitTerms); so the window holds blocks the observer built with
+  // earlier models, which did not fit. Once the fit is consistent those blocks fade with the
+  // window's forgetting, and the fit and the observer's model still move towards each other
+  // meanwhile (a robot joint at 1.0 us of dead time: L_d 2.1 % high at the first consistent fit,
+  // falling 0.2-0.4 % per 25 ms refresh). Until the fit has been consistent for the set number of
+  // window time constants nothing is identified (doc/algorithm.md section 8).
+  const double need_s = config_.assessment.observer_settling_time_constants * stats_.forgettingTimeConstant();
+  if (!(need_s > 0) || !(stats_.edgeModelSet() && stats_.busVoltageLogged() && stats_.shapeObserverActive())) return;
+  const double held_s = std::isfinite(consistent_since_s_) ? std::max(0.0, last_t_ - consistent_since_s_) : 0.0;
+  if (held_s >= need_s) return;
+  char buf[400];
+  std::snprintf(buf, sizeof buf,
+                "the fit has been consistent for %.3g ms of the %.3g ms (%.3g window time constants) it must hold: "
+                "the window still holds blocks the current observer built with earlier models that did not fit, "
+                "and the fit and the observer's model may still be settling; more data settles it",
+                1e3 * held_s, 1e3 * need_s, config_.assessment.observer_settling_time_constants);
+  for (int p = 0; p < kParameterCount; ++p)
+    if (e.status[static_cast<std::size_t>(p)] == ParameterStatus::Identified) {
+      e.status[static_cast<std::size_t>(p)] = ParameterStatus::NotConverged;
+      e.reason[static_cast<std::size_t>(p)] = buf;
+    }
 }
 
 double OnlineIdentifier::fitnessAt(const ParameterVector& p) const {
