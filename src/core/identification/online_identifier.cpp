@@ -1171,8 +1171,12 @@ void OnlineIdentifier::holdWhileObserverSettles(Estimate& e) const {
   // meanwhile (a robot joint at 1.0 us of dead time: L_d 2.1 % high at the first consistent fit,
   // falling 0.2-0.4 % per 25 ms refresh). Until the fit has been consistent for the set number of
   // window time constants nothing is identified (doc/algorithm.md section 8).
+  // (With bounds given the refreshes, which adopt each fit's model and watch its consistency, do not
+  // run: no loop, and nothing to hold for.)
   const double need_s = config_.assessment.observer_settling_time_constants * stats_.forgettingTimeConstant();
-  if (!(need_s > 0) || !(stats_.edgeModelSet() && stats_.busVoltageLogged() && stats_.shapeObserverActive())) return;
+  if (!(need_s > 0) || config_.search.fixed_bounds ||
+      !(stats_.edgeModelSet() && stats_.busVoltageLogged() && stats_.shapeObserverActive()))
+    return;
   const double held_s = std::isfinite(consistent_since_s_) ? std::max(0.0, last_t_ - consistent_since_s_) : 0.0;
   if (held_s >= need_s) return;
   char buf[400];
