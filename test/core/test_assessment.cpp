@@ -1690,8 +1690,8 @@ TEST(DriveModel, TheSameJointWithDelayZeroFindsItToo) {
 
 TEST(DriveModel, BehindTheObserverNothingIsIdentifiedUntilTheFitHasHeldConsistent) {
   // The robot joint with 1.0 us of dead time and no device drops (seed 7): the observer's blocks
-  // and the fit settle together, and the fit is first consistent about 50 ms before the log ends,
-  // its L_d still 2.3 % high and falling. Nothing is identified until the fit has been consistent
+  // and the fit settle together, and the fit is first consistent 45 ms before the log ends, with
+  // L_d 2.3 % high. Nothing is identified until the fit has been consistent
   // for two window time constants, with the reason; with the hold off (0), L_d is identified 2.3 %
   // off, the case it exists for.
   Scenario s = test_helpers::scenario("robot_joint_pwm.yaml");
