@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "pmsm_param_id/model/frames.hpp"
 #include "pmsm_param_id/model/motor_model.hpp"
@@ -80,6 +81,19 @@ TEST(Frames, AdvancedPhasorMatchesCosAndSinOfTheSummedAngle) {
   EXPECT_DOUBLE_EQ(far.c, std::cos(1.6));
   EXPECT_DOUBLE_EQ(far.s, std::sin(1.6));
   EXPECT_TRUE(std::isnan(advance(phasorOf(1.0), 1.0, std::nan("")).c));
+}
+
+// The wrapped angle (frames.hpp wrappedAngle()) is std::remainder(angle, 2 pi) to the bit, inside
+// [-pi, pi] (where it skips the call), on its edges, beyond them and for NaN.
+TEST(Frames, WrappedAngleIsTheRemainderToTheBit) {
+  const double pi = M_PI;
+  for (const double angle : {0.0, -0.0, 1e-300, 0.3, -1.2, 2.9, -3.1, pi, -pi, std::nextafter(pi, 4.0),
+                             std::nextafter(-pi, -4.0), 3 * pi, -3 * pi, 6.5, -6.5, 40.0, -250.7, 1e9}) {
+    const double wrapped = wrappedAngle(angle), reference = std::remainder(angle, 2.0 * pi);
+    EXPECT_EQ(std::memcmp(&wrapped, &reference, sizeof wrapped), 0) << angle << ": " << wrapped << " vs " << reference;
+    EXPECT_LE(std::abs(wrapped), pi) << angle;
+  }
+  EXPECT_TRUE(std::isnan(wrappedAngle(std::nan(""))));
 }
 
 // The logged angle's phasors sample by sample (PhasorTracker): advanced by each increment, yet within

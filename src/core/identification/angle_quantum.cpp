@@ -1,4 +1,5 @@
 #include "pmsm_param_id/identification/angle_quantum.hpp"
+#include "pmsm_param_id/model/frames.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -31,7 +32,7 @@ bool AngleQuantum::add(double theta_e) {
   const double previous = last_;
   last_ = theta_e;
   if (!std::isfinite(previous)) return false;
-  const double step = std::abs(std::remainder(theta_e - previous, 2.0 * M_PI));
+  const double step = std::abs(wrappedAngle(theta_e - previous));
   if (!(step > kPrecision)) return false;  // standing still (or within the logging precision)
   steps_[count_++] = step;
   if (count_ < kSteps) return false;

@@ -610,7 +610,7 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
     c.applied_d = delayed ? p.u_d : s.u_d;
     c.applied_q = delayed ? p.u_q : s.u_q;
     if (delayed && std::isfinite(p.theta_e) && std::isfinite(s.theta_e)) {
-      const double miss = std::remainder(p.theta_e + p.omega_e * dt - s.theta_e, 2.0 * M_PI);
+      const double miss = wrappedAngle(p.theta_e + p.omega_e * dt - s.theta_e);
       const Vec2 applied = rotate({p.u_d, p.u_q}, miss);
       c.applied_d = applied.x;
       c.applied_q = applied.y;

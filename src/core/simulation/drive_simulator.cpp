@@ -157,7 +157,7 @@ SimulatedSample DriveSimulator::step() {
 
   // The log holds what a drive logs: the reference voltage, measured currents, speed and angle.
   out.sample = Sample{t, u_d, u_q, i_d, i_q, omega_e};
-  out.sample.theta_e = std::remainder(theta_e_measured, 2.0 * M_PI);
+  out.sample.theta_e = wrappedAngle(theta_e_measured);
   out.sample.v_dc = v_dc;  // the drive measures its bus (for the modulator); logged as it is
   out.i_d_reference = i_d_ref;
   out.i_q_reference = i_q_ref;
