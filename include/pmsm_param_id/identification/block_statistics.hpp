@@ -289,6 +289,8 @@ class BlockStatistics {
     edge_V_ = V;
   }
   bool edgeModelSet() const { return settings_.inverter_edge_shape && edge_L_d_ > 0 && edge_L_q_ > 0 && edge_V_ > 0; }
+  /// The shape's observer follows each period forward through the replayed edges (observePeriodForward).
+  bool observerFollowsForward() const { return edgeModelSet() && busVoltageLogged(); }
   double edgeLd() const { return edge_L_d_; }  ///< setEdgeModel's L_d [H]
   double edgeLq() const { return edge_L_q_; }  ///< setEdgeModel's L_q [H]
   double edgeV() const { return edge_V_; }     ///< setEdgeModel's V [V]

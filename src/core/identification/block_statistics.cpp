@@ -296,7 +296,7 @@ BlockStatistics::ObservedPeriod BlockStatistics::observePeriod(const Cumulative&
   // follow its reference), so no filter of the measured currents removes it: the observer is the
   // data's model driven by the logged voltages (the same delay, hold and inverter terms as the
   // statistics), pulled towards the measured currents by the gain each sample.
-  if (edgeModelSet() && busVoltageLogged()) return observePeriodForward(p, s, dt, angle_increment, at_sample);
+  if (observerFollowsForward()) return observePeriodForward(p, s, dt, angle_increment, at_sample);
   const double R = observer_model_[kRs], L_d = observer_model_[kLd], L_q = observer_model_[kLq];
   const double psi_f = observer_model_[kPsiF];
   const double width = settings_.inverter_zero_crossing_current;

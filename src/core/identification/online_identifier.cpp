@@ -787,7 +787,7 @@ void OnlineIdentifier::adoptExactFitTerms(const FitCheck& fit, BlockStatistics& 
   // keeping it until a fit determines all four to 1 %, which R_s behind the inverter seldom is, put
   // fewer psi_f estimates outside their stated uncertainty on the duty cycle but left psi_f 0.2 %
   // high for seconds after a 4 % demagnetisation.)
-  const bool forward = stats.edgeModelSet() && stats.busVoltageLogged();
+  const bool forward = stats.observerFollowsForward();
   if (all) {
     stats.setShapeObserverModel(fit.optimum);
   } else if (forward) {
@@ -1175,7 +1175,7 @@ void OnlineIdentifier::holdWhileObserverSettles(Estimate& e) const {
   // run: no loop, and nothing to hold for.)
   const double need_s = config_.assessment.observer_settling_time_constants * stats_.forgettingTimeConstant();
   if (!(need_s > 0) || config_.search.fixed_bounds ||
-      !(stats_.edgeModelSet() && stats_.busVoltageLogged() && stats_.shapeObserverActive()))
+      !(stats_.observerFollowsForward() && stats_.shapeObserverActive()))
     return;
   const double held_s = std::isfinite(consistent_since_s_) ? std::max(0.0, last_t_ - consistent_since_s_) : 0.0;
   if (held_s >= need_s) return;
