@@ -86,7 +86,8 @@ json estimateJson(const Estimate& e) {
   if (e.fit.voltage_angle_modelled)
     j["voltage_angle"] = {{"value", numberOrNull(e.fit.voltage_angle)},
                           {"standard_deviation", numberOrNull(e.fit.voltage_angle_std)},
-                          {"from_long_window", e.fit.voltage_angle_from_long_window}};
+                          {"from_long_window", e.fit.voltage_angle_from_long_window},
+                          {"remembered_from_t", e.fit.voltage_angle_remembered ? json(e.fit.voltage_angle_remembered_t) : json(nullptr)}};
   j["fitness"] = numberOrNull(e.fitness);
   j["samples"] = e.counters.used;
   j["skipped"] = e.counters.skipped();
@@ -146,9 +147,14 @@ void printEstimate(const Estimate& e, bool thermal_enabled) {
   if (e.fit.inverter_modelled)
     std::printf("  inverter voltage = %.4g V %s %s\n", e.inverter_voltage, toString(e.inverter_status), e.inverter_reason.c_str());
   if (!e.drive_model.empty()) std::printf("  drive model: %s\n", e.drive_model.c_str());
-  if (e.fit.voltage_angle_modelled)
+  if (e.fit.voltage_angle_modelled) {
+    char from[96] = "";
+    if (e.fit.voltage_angle_from_long_window) std::snprintf(from, sizeof from, " (from the long window)");
+    if (e.fit.voltage_angle_remembered)
+      std::snprintf(from, sizeof from, " (as the fitness window determined it at t = %.4g s)", e.fit.voltage_angle_remembered_t);
     std::printf("  voltage angle (data's fit) = %.3g +- %.2g omega_e T_s beyond the declared timing%s\n", e.fit.voltage_angle,
-                e.fit.voltage_angle_std, e.fit.voltage_angle_from_long_window ? " (from the long window)" : "");
+                e.fit.voltage_angle_std, from);
+  }
   if (e.fit.cross_saturation_modelled)
     std::printf("  saturation (data's fit): incremental L_qq = %.4g H +- %.2g, cross L_dq = %.4g H +- %.2g\n", e.fit.L_qq,
                 e.fit.L_qq_std, e.fit.L_dq, e.fit.L_dq_std);

@@ -1712,6 +1712,56 @@ TEST(DriveModel, BehindTheObserverNothingIsIdentifiedUntilTheFitHasHeldConsisten
   EXPECT_GT(std::abs(off.parameters[kLd] / truth[kLd] - 1.0), 0.02);
 }
 
+TEST(DriveModel, AJointAtOneOperatingPointTakesTheAngleItsReversalDetermined) {
+  // The robot joint's log ends 0.3 s after its speed reversal, at one light operating point where
+  // the drive's voltage angle and L_q are one column (the window's own angle +-0.006-0.007): L_q was
+  // determined only to +-1.1 %. The windows across the reversal, once the fit has held consistent,
+  // determine the angle to +-0.004; the last window holds that angle (it agrees with its own) and
+  // L_q is identified, within 1 % of the truth.
+  const auto data = test_helpers::run(test_helpers::scenario("robot_joint_pwm.yaml"));
+  const ParameterVector& truth = data.back().truth;
+  const Estimate e = identify(samplesOf(data), "wls", IdentifierConfig{});
+  ASSERT_TRUE(e.fit.voltage_angle_modelled);
+  EXPECT_TRUE(e.fit.voltage_angle_remembered) << e.fit.voltage_angle << " +- " << e.fit.voltage_angle_std;
+  EXPECT_GT(e.fit.voltage_angle_remembered_t, 0.7);  // after the reversal (0.6-0.7 s) and the delay's choice
+  EXPECT_LT(e.fit.voltage_angle_std, 0.7 * e.fit.own_voltage_angle_std);
+  EXPECT_TRUE(e.identifiable[kLq]) << e.reason[kLq];
+  EXPECT_LT(std::abs(errorPercent(e.parameters[kLq], truth[kLq])), 1.0);
+  expectTheJointFits(e, data);
+}
+
+TEST(DriveModel, ARememberedAngleIsTakenOnlyWhereTheWindowAgrees) {
+  // At one steady operating point (industrial_pwm_steady) the window determines the angle poorly; a
+  // remembered angle with a tenth of its standard deviation is held there (and L_q's standard
+  // deviation falls), one ten of the window's own standard deviations away is not. (The long
+  // window, which is preferred where it determines the angle better than the fitness window, is
+  // forgotten here: the remembered angle is what serves a window whose long window does not.)
+  Scenario s = test_helpers::scenario("industrial_pwm_steady.yaml");
+  s.duration = 0.5;
+  const auto data = test_helpers::run(s);
+  IdentifierConfig c = loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/real_drive.yaml"));
+  BlockStatistics stats(c.window);
+  stats.configure(s.drive.sample_period);
+  for (const auto& x : data) stats.add(x.sample);
+  stats.resetLongWindow();
+  const ParameterVector start = data.back().truth;
+  const FitCheck own = checkFit(stats, c.assessment, start, false, true, 10.0, false);
+  ASSERT_TRUE(own.available && own.voltage_angle_modelled);
+  ASSERT_TRUE(std::isfinite(own.own_voltage_angle_std)) << "the window should determine the angle a little";
+  EXPECT_FALSE(own.voltage_angle_remembered);
+  RememberedAngle agreeing{own.own_voltage_angle, 0.1 * own.own_voltage_angle_std, 0.1};
+  const FitCheck with = checkFit(stats, c.assessment, start, false, true, 10.0, false, &agreeing);
+  EXPECT_TRUE(with.voltage_angle_remembered);
+  EXPECT_DOUBLE_EQ(with.voltage_angle, agreeing.angle);
+  EXPECT_DOUBLE_EQ(with.voltage_angle_std, agreeing.standard_deviation);
+  EXPECT_LT(with.relative_std[kLq], 0.5 * own.relative_std[kLq]);
+  RememberedAngle contradicted{own.own_voltage_angle + 10.0 * own.own_voltage_angle_std, 0.1 * own.own_voltage_angle_std, 0.1};
+  const FitCheck against = checkFit(stats, c.assessment, start, false, true, 10.0, false, &contradicted);
+  EXPECT_FALSE(against.voltage_angle_remembered);
+  EXPECT_NEAR(against.voltage_angle, own.voltage_angle, 1e-9);
+  EXPECT_DOUBLE_EQ(against.relative_std[kLq], own.relative_std[kLq]);
+}
+
 TEST(DriveModel, TheObserversSettlingKeyReadsAndChecks) {
   EXPECT_DOUBLE_EQ(IdentifierConfig{}.assessment.observer_settling_time_constants, 2.0);
   const std::string off = test_helpers::writeTemp("settle_off.yaml", "assessment: {observer_settling_time_constants: 0}\n");

@@ -91,6 +91,13 @@ struct FitCheck {
   /// The angle came from the long check window (it determined it better than the fitness window):
   /// the fitness window's fit holds it there, and the parameters' std include its std's effect.
   bool voltage_angle_from_long_window = false;
+  /// The angle came from an earlier fitness window that determined it better (RememberedAngle): the
+  /// fit holds it the same way.
+  bool voltage_angle_remembered = false;
+  double voltage_angle_remembered_t = NAN;  ///< the stamp of the window that gave it [s]
+  /// The fitness window's own estimate of a, whatever the fit then held [-] (inf std: undetermined).
+  double own_voltage_angle = NAN;
+  double own_voltage_angle_std = std::numeric_limits<double>::infinity();
   /// The inverter voltage and its shape came from the long check window in the same way (several
   /// current magnitudes there separate V from R_s); inverter_relative_std is then the long window's.
   bool inverter_from_long_window = false;
@@ -107,12 +114,27 @@ struct FitCheck {
   ParameterVector relative_std_known_inverter{};
 };
 
+/// The drive's voltage angle as an earlier fitness window determined it (a constant of the drive:
+/// its angle prediction and computation delay). A window spanning a load step or a speed reversal
+/// tells the angle from L_q; one at a steady operating point cannot, and takes the remembered one
+/// where that is better determined than its own and the two agree (doc/algorithm.md section 8).
+struct RememberedAngle {
+  double angle = NAN;                                                   ///< a [periods of omega_e T_s]
+  double standard_deviation = std::numeric_limits<double>::infinity();  ///< [-]
+  double t = NAN;                                                       ///< stamp of the window that gave it [s]
+  bool known() const { return std::isfinite(angle) && std::isfinite(standard_deviation) && standard_deviation > 0; }
+};
+/// A remembered angle is taken only where it agrees with the window's own within this many
+/// combined standard deviations; between one and this, its standard deviation is scaled by the
+/// disagreement (in combined standard deviations).
+constexpr double kRememberedAngleAgreement = 3.0;
+
 /// Exact fit of the window starting from `start` (positive inductances), and its check.
 /// estimate_inverter: fit V and its zero-crossing shape with the four (start value inverter_start).
 /// estimate_cross_saturation: fit L_qq and L_dq with the four (section 11); excludes estimate_inverter.
 FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& settings, const ParameterVector& start,
                   bool diagnose, bool estimate_inverter = false, double inverter_start = 0.0,
-                  bool estimate_cross_saturation = false);
+                  bool estimate_cross_saturation = false, const RememberedAngle* remembered = nullptr);
 
 /// Status of the estimated inverter voltage: identified within max_relative_uncertainty, or why not.
 struct InverterAssessment {

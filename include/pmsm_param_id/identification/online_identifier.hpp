@@ -300,6 +300,9 @@ class OnlineIdentifier {
   };
   std::deque<RecentSample> recent_;
   double consistent_since_s_ = std::numeric_limits<double>::quiet_NaN();  ///< the exact fit consistent since [s]
+  /// The drive's voltage angle as the best-determined settled fitness window gave it (section 8):
+  /// from fits consistent for the settling time, forgotten where the drive model changes.
+  RememberedAngle remembered_angle_;
   // The other whole-sample delay's statistics, run beside the chosen model's from the switch while
   // the chosen one's fit is poor (watchOtherDelay), and since when [s].
   std::optional<BlockStatistics> other_delay_;

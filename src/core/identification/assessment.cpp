@@ -311,7 +311,8 @@ BlockFit jointFit(const WindowSums& window, const BlockFit& own, const WindowSum
 }  // namespace
 
 FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, const ParameterVector& start,
-                  bool diagnose_misfit, bool estimate_inverter, double inverter_start, bool estimate_cross) {
+                  bool diagnose_misfit, bool estimate_inverter, double inverter_start, bool estimate_cross,
+                  const RememberedAngle* remembered) {
   FitCheck out;
   out.relative_std.fill(std::numeric_limits<double>::infinity());
   if (!stats.hasBlocks()) return out;
@@ -355,13 +356,26 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   double angle_std = std::numeric_limits<double>::infinity();
   if (estimate_angle && free_fit.determined[static_cast<std::size_t>(angle_index)])
     angle_std = free_fit.standard_deviation(angle_index);
+  if (estimate_angle) {
+    out.own_voltage_angle = free_fit.beta(angle_index);
+    out.own_voltage_angle_std = angle_std;
+  }
   std::vector<bool> held(static_cast<std::size_t>(model.size()), false);  // the constants taken from the long window
   ParameterVector angle_shift{};     // |p(a + sigma_a) - p(a)| with the angle held [SI]
   ParameterVector inverter_shift{};  // |p(V + sigma_V) - p(V)| with V held [SI]
   double inverter_long_relative_std = std::numeric_limits<double>::infinity();
   if (estimate_angle || estimate_inverter) {
     WindowSums long_window = stats.longWindow();
-    if (long_window.hasBlocks()) {
+    // An earlier fitness window's angle, where it agrees with this window's own (within
+    // kRememberedAngleAgreement combined standard deviations; beyond one, its standard deviation
+    // scaled by the disagreement).
+    double remembered_std = std::numeric_limits<double>::infinity();
+    if (estimate_angle && remembered && remembered->known()) {
+      const double own_std = std::isfinite(angle_std) ? angle_std : std::numeric_limits<double>::infinity();
+      const double z = std::abs(free_fit.beta(angle_index) - remembered->angle) / std::hypot(own_std, remembered->standard_deviation);
+      if (z <= kRememberedAngleAgreement) remembered_std = remembered->standard_deviation * std::max(1.0, z);
+    }
+    if (long_window.hasBlocks() || std::isfinite(remembered_std)) {
       long_window.noise_variance_d = 2.0 * free_fit.noise_variance_d;  // a difference of two independent blocks
       long_window.noise_variance_q = 2.0 * free_fit.noise_variance_q;
       long_window.min_noise_variance = 2.0 * floor2;
@@ -371,7 +385,9 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
       // R_s; the long window's differences cancel constants but hold the steps, which give L_q and
       // R_s. Together they separate them: the joint fit, where the two windows agree on one set of
       // parameters (each one's residual rises by no more than chance allows), gives the constants.
-      const BlockFit joint_fit = jointFit(window, free_fit, long_window, model, a.variance_inflation);
+      BlockFit joint_fit;
+      joint_fit.ok = false;
+      if (long_window.hasBlocks()) joint_fit = jointFit(window, free_fit, long_window, model, a.variance_inflation);
       const auto stdOf = [](const BlockFit& fit, int j) {
         return fit.ok && fit.determined[static_cast<std::size_t>(j)] && std::isfinite(fit.beta(j)) ? fit.standard_deviation(j)
                                                                                                   : std::numeric_limits<double>::infinity();
@@ -379,10 +395,18 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
       std::vector<bool> hold(static_cast<std::size_t>(model.size()), false);
       std::vector<std::pair<int, double>> shifts;  // (entry, its long-window std)
       Eigen::VectorXd at = free_fit.beta;
+      bool angle_remembered = false;
+      // The long window first (a fit of this data with more of it); the remembered angle only where
+      // the long window does not determine the angle better than this window alone.
       if (estimate_angle && stdOf(joint_fit, angle_index) < stdOf(free_fit, angle_index)) {
         hold[static_cast<std::size_t>(angle_index)] = true;
         at(angle_index) = joint_fit.beta(angle_index);
         shifts.emplace_back(angle_index, stdOf(joint_fit, angle_index));
+      } else if (estimate_angle && remembered_std < stdOf(free_fit, angle_index)) {
+        hold[static_cast<std::size_t>(angle_index)] = true;
+        at(angle_index) = remembered->angle;
+        shifts.emplace_back(angle_index, remembered_std);
+        angle_remembered = true;
       }
       const int shape_end = estimate_inverter ? (with_bus ? 7 : 6) : 4;
       if (estimate_inverter && stdOf(joint_fit, 4) < stdOf(free_fit, 4) && joint_fit.beta(4) > 0) {
@@ -432,8 +456,10 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
           angle_shift = moved_angle;
           inverter_shift = moved_inverter;
           if (hold[static_cast<std::size_t>(angle_index)] && estimate_angle) {
-            angle_std = stdOf(joint_fit, angle_index);
-            out.voltage_angle_from_long_window = true;
+            angle_std = angle_remembered ? remembered_std : stdOf(joint_fit, angle_index);
+            out.voltage_angle_from_long_window = !angle_remembered;
+            out.voltage_angle_remembered = angle_remembered;
+            if (angle_remembered) out.voltage_angle_remembered_t = remembered->t;
           }
           out.inverter_from_long_window = std::isfinite(inverter_long_relative_std);
         }
@@ -475,7 +501,7 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     if (known.ok)
       for (int p = 0; p < kParameterCount; ++p)
         out.relative_std_known_inverter[p] =
-            std::hypot(known.standard_deviation(p), out.voltage_angle_from_long_window ? angle_shift[p] : 0.0) /
+            std::hypot(known.standard_deviation(p), out.voltage_angle_from_long_window || out.voltage_angle_remembered ? angle_shift[p] : 0.0) /
             std::abs(known.beta(p));
   }
   if (estimate_angle) {
@@ -487,7 +513,7 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     // (The constants the long window gave stay held: "known timing" means known timing alone.)
     std::vector<bool> hold_angle = held;
     hold_angle[static_cast<std::size_t>(angle_index)] = true;
-    const BlockFit known = out.voltage_angle_from_long_window
+    const BlockFit known = out.voltage_angle_from_long_window || out.voltage_angle_remembered
                                ? f
                                : BlockLeastSquares::fit(window, model, f.beta, hold_angle, a.variance_inflation);
     if (known.ok)

@@ -331,6 +331,7 @@ void OnlineIdentifier::adoptWindow(const WindowSettings& w, std::optional<BlockS
   broken_ = true;
   have_watched_ = false;
   drive_constants_ = DriveConstants{};  // of the previous model's terms
+  remembered_angle_ = RememberedAngle{};
   slow_fit_ = SlowFit{};
   slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
   slow_history_.clear();
@@ -518,6 +519,7 @@ void OnlineIdentifier::reset() {
   }
   width_running_since_ = std::numeric_limits<double>::quiet_NaN();
   consistent_since_s_ = std::numeric_limits<double>::quiet_NaN();
+  remembered_angle_ = RememberedAngle{};
   drive_model_switched_ = false;
   drive_model_note_.clear();
   angle_quantum_.reset();
@@ -803,7 +805,7 @@ bool OnlineIdentifier::refreshSearchBox() {
   optimum_inside_.fill(false);
   if (!box_.valid || config_.search.fixed_bounds || !stats_.hasBlocks()) return false;
   const FitCheck fit = checkFit(stats_, config_.assessment, box_.centre, false, config_.inverter.estimate_voltage,
-                                stats_.inverterVoltage(), config_.magnetics.cross_saturation);
+                                stats_.inverterVoltage(), config_.magnetics.cross_saturation, &remembered_angle_);
   if (!fit.available) return false;
   noise_std_ = std::max(fit.noise_std_d, fit.noise_std_q);
   adoptExactFitTerms(fit);
@@ -831,6 +833,16 @@ bool OnlineIdentifier::refreshSearchBox() {
     if (!std::isfinite(consistent_since_s_)) consistent_since_s_ = last_t_;
   } else {
     consistent_since_s_ = std::numeric_limits<double>::quiet_NaN();
+  }
+  // The drive's voltage angle, remembered from the fit that determines it best once the fit has held
+  // consistent for the settling time (the hold behind the observer's: a fit that has just become
+  // consistent may still move with the observer's model).
+  const double settle_s = config_.assessment.observer_settling_time_constants * stats_.forgettingTimeConstant();
+  if (fit.consistent && fit.voltage_angle_modelled && last_t_ - consistent_since_s_ >= settle_s &&
+      std::isfinite(fit.own_voltage_angle) && fit.own_voltage_angle_std < remembered_angle_.standard_deviation) {
+    remembered_angle_.angle = fit.own_voltage_angle;
+    remembered_angle_.standard_deviation = fit.own_voltage_angle_std;
+    remembered_angle_.t = last_t_;
   }
   const double inner = std::sqrt(config_.search.span_factor);
   ParameterVector centre = box_.centre;
@@ -956,8 +968,10 @@ Estimate OnlineIdentifier::estimate() const {
   const double cached_v = fit_cache_.inverter_voltage;
   const double v_start = warm && fit_cache_.inverter_modelled && std::isfinite(cached_v) && std::abs(cached_v) < 1e3 ? cached_v : 0.0;
   const bool cross = config_.magnetics.cross_saturation;
-  FitCheck fit = checkFit(stats_, config_.assessment, warm ? fit_cache_.optimum : start, retest, inverter, v_start, cross);
-  if (!fit.available && fit_cache_.available) fit = checkFit(stats_, config_.assessment, start, retest, inverter, 0.0, cross);
+  FitCheck fit = checkFit(stats_, config_.assessment, warm ? fit_cache_.optimum : start, retest, inverter, v_start, cross,
+                          &remembered_angle_);
+  if (!fit.available && fit_cache_.available)
+    fit = checkFit(stats_, config_.assessment, start, retest, inverter, 0.0, cross, &remembered_angle_);
   if (retest) {
     fit_blocks_ = stats_.blocks();
     fit_cache_ = fit;
