@@ -823,6 +823,9 @@ bool OnlineIdentifier::refreshSearchBox() {
         stats_.resetLongWindow();  // and the slow window
         slow_history_.clear();
         recent_optima_.clear();
+        // And the remembered angle: the angle a window fits absorbs a share of what the model
+        // misses, which a changed motor changes (doc/algorithm.md section 8).
+        remembered_angle_ = RememberedAngle{};
         break;
       }
     }
