@@ -133,6 +133,10 @@ class OnlineIdentifier {
   /// Current parameter vector only (cheaper than estimate()); NaN before the method starts.
   ParameterVector parameters() const { return started() ? current() : nanVector(); }
   const BlockStatistics& statistics() const { return stats_; }
+  /// The drive's voltage angle remembered from the settled fitness window that determined it best
+  /// (doc/algorithm.md section 8), where it is known and younger than the long window's time
+  /// constant; else null.
+  const RememberedAngle* rememberedAngle() const;
   const SearchBox& searchBox() const { return box_; }
   double samplePeriod() const { return period_.nominal(); }
   virtual std::string method() const = 0;
@@ -303,6 +307,8 @@ class OnlineIdentifier {
   /// The drive's voltage angle as the best-determined settled fitness window gave it (section 8):
   /// from fits consistent for the settling time, forgotten where the drive model changes.
   RememberedAngle remembered_angle_;
+  bool fit_held_remembered_angle_ = false;  ///< the last refresh's fit held the remembered angle
+  double model_since_t_ = std::numeric_limits<double>::quiet_NaN();  ///< the drive model adopted at [s] (NaN: the declared one)
   // The other whole-sample delay's statistics, run beside the chosen model's from the switch while
   // the chosen one's fit is poor (watchOtherDelay), and since when [s].
   std::optional<BlockStatistics> other_delay_;

@@ -396,13 +396,14 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
       std::vector<std::pair<int, double>> shifts;  // (entry, its long-window std)
       Eigen::VectorXd at = free_fit.beta;
       bool angle_remembered = false;
-      // The long window first (a fit of this data with more of it); the remembered angle only where
-      // the long window does not determine the angle better than this window alone.
+      // The long window first (a fit of this data with more of it); the remembered angle stands in
+      // only where the two windows cannot be fitted together (they disagree, or the long window has
+      // no blocks yet).
       if (estimate_angle && stdOf(joint_fit, angle_index) < stdOf(free_fit, angle_index)) {
         hold[static_cast<std::size_t>(angle_index)] = true;
         at(angle_index) = joint_fit.beta(angle_index);
         shifts.emplace_back(angle_index, stdOf(joint_fit, angle_index));
-      } else if (estimate_angle && remembered_std < stdOf(free_fit, angle_index)) {
+      } else if (estimate_angle && !joint_fit.ok && remembered_std < stdOf(free_fit, angle_index)) {
         hold[static_cast<std::size_t>(angle_index)] = true;
         at(angle_index) = remembered->angle;
         shifts.emplace_back(angle_index, remembered_std);
