@@ -134,8 +134,8 @@ class OnlineIdentifier {
   ParameterVector parameters() const { return started() ? current() : nanVector(); }
   const BlockStatistics& statistics() const { return stats_; }
   /// The drive's voltage angle remembered from the settled fitness window that determined it best
-  /// (doc/algorithm.md section 8), where it is known and younger than the long window's time
-  /// constant; else null.
+  /// (doc/algorithm.md section 8), where it is known and both the drive model's adoption and that
+  /// window lie within the long window's time constant; else null.
   const RememberedAngle* rememberedAngle() const;
   const SearchBox& searchBox() const { return box_; }
   double samplePeriod() const { return period_.nominal(); }
@@ -305,7 +305,7 @@ class OnlineIdentifier {
   std::deque<RecentSample> recent_;
   double consistent_since_s_ = std::numeric_limits<double>::quiet_NaN();  ///< the exact fit consistent since [s]
   /// The drive's voltage angle as the best-determined settled fitness window gave it (section 8):
-  /// from fits consistent for the settling time, forgotten where the drive model changes.
+  /// from fits consistent for the settling time, forgotten where the drive model or the motor changes.
   RememberedAngle remembered_angle_;
   bool fit_held_remembered_angle_ = false;  ///< the last refresh's fit held the remembered angle
   double model_since_t_ = std::numeric_limits<double>::quiet_NaN();  ///< the drive model adopted at [s] (NaN: the declared one)

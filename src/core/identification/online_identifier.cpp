@@ -813,9 +813,8 @@ bool OnlineIdentifier::refreshSearchBox() {
   if (!fit.available) return false;
   noise_std_ = std::max(fit.noise_std_d, fit.noise_std_q);
   // Where the fit starts or stops holding the remembered angle, the swarm's fitness takes another
-  // angle (adoptExactFitTerms): the optima remembered under the other one are no reference for a
-  // method that trails them. (Measured along the switching-level duty cycle: FBDAPSO's L_q 2.02 %
-  // off at a stated +-0.45 %, 1.8 % from the data's optimum but next to one of the last moments'.)
+  // angle (adoptExactFitTerms): the optima remembered under the other one were of another fitness
+  // and are no reference for a method that trails them.
   if (fit.voltage_angle_remembered != fit_held_remembered_angle_) recent_optima_.clear();
   fit_held_remembered_angle_ = fit.voltage_angle_remembered;
   adoptExactFitTerms(fit);
