@@ -1588,18 +1588,31 @@ TEST(VoltageAngle, TheSwarmsFitnessWithAKnownAngleIsTheModelsMeanSquareResidual)
   }
 }
 
+namespace {
+/// A scenario's log, cut to `duration_s`, through the statistics of real_drive.yaml's window.
+struct RealDriveRun {
+  IdentifierConfig config;
+  std::vector<SimulatedSample> data;
+  BlockStatistics stats;
+};
+RealDriveRun realDriveRun(const std::string& scenario_file, double duration_s) {
+  Scenario s = test_helpers::scenario(scenario_file);
+  s.duration = duration_s;
+  const IdentifierConfig c = loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/real_drive.yaml"));
+  RealDriveRun r{c, test_helpers::run(s), BlockStatistics(c.window)};
+  r.stats.configure(s.drive.sample_period);
+  for (const auto& x : r.data) r.stats.add(x.sample);
+  return r;
+}
+}  // namespace
+
 TEST(RealDriveIdentification, TheSwarmsFitnessWithTheDrivesTermsFoldedInIsTheModelsResidual) {
   // A switching-level drive's log through the real drive's statistics (bus logged: narrow, wide and
   // bus shares), the known inverter error and voltage angle folded into the voltage entries: the
   // fitness is the exact fit's residual of the model with them as parameters, at any point, and the
   // swarm's batch call gives each point's value.
-  Scenario s = test_helpers::scenario("industrial_pwm.yaml");
-  s.duration = 0.4;
-  const auto data = test_helpers::run(s);
-  IdentifierConfig c = loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/real_drive.yaml"));
-  BlockStatistics stats(c.window);
-  stats.configure(s.drive.sample_period);
-  for (const auto& x : data) stats.add(x.sample);
+  RealDriveRun run = realDriveRun("industrial_pwm.yaml", 0.4);
+  BlockStatistics& stats = run.stats;
   ASSERT_TRUE(stats.busVoltageLogged());
   const LinearBlockModel model = LinearBlockModel::withVoltageAngle(LinearBlockModel::inverterWithShapeAndBus());
   std::vector<ParameterVector> points;
@@ -1736,15 +1749,11 @@ TEST(DriveModel, ARememberedAngleIsTakenOnlyWhereTheWindowAgrees) {
   // deviation falls), one ten of the window's own standard deviations away is not. (The long
   // window, which is preferred where it determines the angle better than the fitness window, is
   // forgotten here: the remembered angle is what serves a window whose long window does not.)
-  Scenario s = test_helpers::scenario("industrial_pwm_steady.yaml");
-  s.duration = 0.5;
-  const auto data = test_helpers::run(s);
-  IdentifierConfig c = loadIdentifierConfig(test_helpers::sourcePath("config/identifiers/real_drive.yaml"));
-  BlockStatistics stats(c.window);
-  stats.configure(s.drive.sample_period);
-  for (const auto& x : data) stats.add(x.sample);
+  RealDriveRun run = realDriveRun("industrial_pwm_steady.yaml", 0.5);
+  BlockStatistics& stats = run.stats;
+  const IdentifierConfig& c = run.config;
   stats.resetLongWindow();
-  const ParameterVector start = data.back().truth;
+  const ParameterVector start = run.data.back().truth;
   const FitCheck own = checkFit(stats, c.assessment, start, false, true, 10.0, false);
   ASSERT_TRUE(own.available && own.voltage_angle_modelled);
   ASSERT_TRUE(std::isfinite(own.own_voltage_angle_std)) << "the window should determine the angle a little";
