@@ -1746,7 +1746,8 @@ TEST(DriveModel, AJointAtOneOperatingPointTakesTheAngleItsReversalDetermined) {
 TEST(DriveModel, ARememberedAngleIsTakenOnlyWhereTheWindowAgrees) {
   // At one steady operating point (industrial_pwm_steady) the window determines the angle poorly; a
   // remembered angle with a tenth of its standard deviation is held there (and L_q's standard
-  // deviation falls), one ten of the window's own standard deviations away is not. (The long
+  // deviation falls), one with 0.8 of it is not, nor one ten of the window's own standard deviations
+  // away. (The long
   // window, which is preferred where it determines the angle better than the fitness window, is
   // forgotten here: the remembered angle is what serves a window whose long window does not.)
   RealDriveRun run = realDriveRun("industrial_pwm_steady.yaml", 0.5);
@@ -1764,6 +1765,9 @@ TEST(DriveModel, ARememberedAngleIsTakenOnlyWhereTheWindowAgrees) {
   EXPECT_DOUBLE_EQ(with.voltage_angle, agreeing.angle);
   EXPECT_DOUBLE_EQ(with.voltage_angle_std, agreeing.standard_deviation);
   EXPECT_LT(with.relative_std[kLq], 0.5 * own.relative_std[kLq]);
+  // One that agrees but carries less than twice the window's own information is not held either.
+  RememberedAngle barely_better{own.own_voltage_angle, 0.8 * own.own_voltage_angle_std, 0.1};
+  EXPECT_FALSE(checkFit(stats, c.assessment, start, false, true, 10.0, false, &barely_better).voltage_angle_remembered);
   RememberedAngle contradicted{own.own_voltage_angle + 10.0 * own.own_voltage_angle_std, 0.1 * own.own_voltage_angle_std, 0.1};
   const FitCheck against = checkFit(stats, c.assessment, start, false, true, 10.0, false, &contradicted);
   EXPECT_FALSE(against.voltage_angle_remembered);

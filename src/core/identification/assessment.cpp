@@ -403,7 +403,8 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
         hold[static_cast<std::size_t>(angle_index)] = true;
         at(angle_index) = joint_fit.beta(angle_index);
         shifts.emplace_back(angle_index, stdOf(joint_fit, angle_index));
-      } else if (estimate_angle && !joint_fit.ok && remembered_std < stdOf(free_fit, angle_index)) {
+      } else if (estimate_angle && !joint_fit.ok &&
+                 remembered_std * kRememberedAngleGain < stdOf(free_fit, angle_index)) {
         hold[static_cast<std::size_t>(angle_index)] = true;
         at(angle_index) = remembered->angle;
         shifts.emplace_back(angle_index, remembered_std);
