@@ -190,6 +190,11 @@ class OnlineIdentifier {
   /// Behind the shape's forward observer: nothing identified until the fit has been consistent for
   /// assessment.observer_settling_time_constants window time constants.
   void holdWhileObserverSettles(Estimate& e) const;
+  /// How long the fit must hold consistent before it counts as settled (the hold, the remembered
+  /// angle): assessment.observer_settling_time_constants window time constants [s].
+  double settlingTimeS() const;
+  /// How long the exact fit has been consistent without a break (0 where it is not) [s].
+  double consistentForS() const;
   /// Nothing about the drive declared: switches to the real drive's model where the data show one.
   void watchDriveModel();
   /// Once the logged angle's quantum is decided: the flux columns' smoothing (automatic, with one).

@@ -308,6 +308,8 @@ BlockFit jointFit(const WindowSums& window, const BlockFit& own, const WindowSum
   f.standard_deviation *= birge;
   return f;
 }
+/// The fit held the angle another window gave (the long window's, or a remembered one).
+bool angleHeldFromElsewhere(const FitCheck& fit) { return fit.voltage_angle_from_long_window || fit.voltage_angle_remembered; }
 }  // namespace
 
 FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, const ParameterVector& start,
@@ -503,7 +505,7 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     if (known.ok)
       for (int p = 0; p < kParameterCount; ++p)
         out.relative_std_known_inverter[p] =
-            std::hypot(known.standard_deviation(p), out.voltage_angle_from_long_window || out.voltage_angle_remembered ? angle_shift[p] : 0.0) /
+            std::hypot(known.standard_deviation(p), angleHeldFromElsewhere(out) ? angle_shift[p] : 0.0) /
             std::abs(known.beta(p));
   }
   if (estimate_angle) {
@@ -515,7 +517,7 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
     // (The constants the long window gave stay held: "known timing" means known timing alone.)
     std::vector<bool> hold_angle = held;
     hold_angle[static_cast<std::size_t>(angle_index)] = true;
-    const BlockFit known = out.voltage_angle_from_long_window || out.voltage_angle_remembered
+    const BlockFit known = angleHeldFromElsewhere(out)
                                ? f
                                : BlockLeastSquares::fit(window, model, f.beta, hold_angle, a.variance_inflation);
     if (known.ok)

@@ -850,8 +850,7 @@ bool OnlineIdentifier::refreshSearchBox() {
   // consistent for the settling time (the hold behind the observer's: a fit that has just become
   // consistent may still move with the observer's model).
   if (!rememberedAngle()) remembered_angle_ = RememberedAngle{};  // its time is up: a new one may form
-  const double settle_s = config_.assessment.observer_settling_time_constants * stats_.forgettingTimeConstant();
-  if (fit.consistent && fit.voltage_angle_modelled && last_t_ - consistent_since_s_ >= settle_s &&
+  if (fit.consistent && fit.voltage_angle_modelled && consistentForS() >= settlingTimeS() &&
       std::isfinite(fit.own_voltage_angle) && fit.own_voltage_angle_std < remembered_angle_.standard_deviation) {
     remembered_angle_.angle = fit.own_voltage_angle;
     remembered_angle_.standard_deviation = fit.own_voltage_angle_std;
@@ -1206,6 +1205,14 @@ const RememberedAngle* OnlineIdentifier::rememberedAngle() const {
   return &remembered_angle_;
 }
 
+double OnlineIdentifier::settlingTimeS() const {
+  return config_.assessment.observer_settling_time_constants * stats_.forgettingTimeConstant();
+}
+
+double OnlineIdentifier::consistentForS() const {
+  return std::isfinite(consistent_since_s_) ? std::max(0.0, last_t_ - consistent_since_s_) : 0.0;
+}
+
 void OnlineIdentifier::holdWhileObserverSettles(Estimate& e) const {
   // The shape's observer runs each fit's model forward through the switching edges, and the fit is
   // poor until it runs (adoptExactFitTerms); so the window holds blocks the observer built with
@@ -1216,11 +1223,11 @@ void OnlineIdentifier::holdWhileObserverSettles(Estimate& e) const {
   // window time constants nothing is identified (doc/algorithm.md section 8).
   // (With bounds given the refreshes, which adopt each fit's model and watch its consistency, do not
   // run: no loop, and nothing to hold for.)
-  const double need_s = config_.assessment.observer_settling_time_constants * stats_.forgettingTimeConstant();
+  const double need_s = settlingTimeS();
   if (!(need_s > 0) || config_.search.fixed_bounds ||
       !(stats_.observerFollowsForward() && stats_.shapeObserverActive()))
     return;
-  const double held_s = std::isfinite(consistent_since_s_) ? std::max(0.0, last_t_ - consistent_since_s_) : 0.0;
+  const double held_s = consistentForS();
   if (held_s >= need_s) return;
   char buf[400];
   std::snprintf(buf, sizeof buf,
