@@ -40,10 +40,11 @@ enum class MisfitCause : std::uint8_t {
   None = 0,
   Unit,          ///< the speed's or the time's unit
   Delay,         ///< the voltage acts a whole sample later or earlier than declared
+  FractionalDelay,  ///< a fraction of a sample: the logged voltage does not hold over the period
   VoltageAngle,  ///< the voltage acts turned against the declared timing (angle prediction)
   Inverter,      ///< an inverter error voltage along the current
   Saturation,    ///< a cross-saturation inductance
-  Other,         ///< e.g. a log decimated from a faster loop
+  Other,         ///< none of the above
 };
 
 /// The data's own verdict, the same for every method on the same window.

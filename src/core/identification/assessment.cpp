@@ -192,7 +192,7 @@ Misfit misspecification(const WindowSums& window, const AssessmentSettings& a, c
                             : "the voltages act %.2g samples earlier than the model's delay (declared, or chosen "
                               "from the data): lower time.voltage_delay_samples",
                       std::abs(d)),
-             fractional ? MisfitCause::Other : MisfitCause::Delay,
+             fractional ? MisfitCause::FractionalDelay : MisfitCause::Delay,
              format(fractional ? "a fractional delay (%.2g samples)" : "a delay of %.2g samples", d), d);
   }
   // The voltage acting at another angle than declared (the drive's angle prediction, which no log

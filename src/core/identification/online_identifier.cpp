@@ -1010,6 +1010,22 @@ Estimate OnlineIdentifier::estimate() const {
     fit.likely_cause = buf;
     fit.likely_cause_kind = MisfitCause::Unit;
   }
+  // The other whole-sample delay runs beside the one taken at the switch only while that one's fit
+  // is poor (watchOtherDelay): its misfit is first the undecided delay. A whole or fractional delay
+  // that explains it is that delay, not a decimated log or a declaration to change (robot_joint_pwm
+  // up to 0.6 s, the drive's delay 1 beside the chosen 0: a fractional delay of half a sample fits
+  // best); any other cause is named after it.
+  if (other_delay_ && !fit.consistent) {
+    char buf[240];
+    std::snprintf(buf, sizeof buf,
+                  "the drive's delay is not decided yet: delay %d, taken at the switch, misfits and delay %d runs beside "
+                  "it from t = %.4g s until one of the two fits clearly better",
+                  config_.window.voltage_delay_samples, 1 - config_.window.voltage_delay_samples, other_delay_since_);
+    const bool a_delay =
+        fit.likely_cause_kind == MisfitCause::Delay || fit.likely_cause_kind == MisfitCause::FractionalDelay;
+    fit.likely_cause = a_delay || fit.likely_cause.empty() ? std::string(buf) : std::string(buf) + "; " + fit.likely_cause;
+    if (a_delay || fit.likely_cause_kind == MisfitCause::None) fit.likely_cause_kind = MisfitCause::Delay;
+  }
   const std::optional<TrailedOptima> trailed = trailedOptima(fit);
   e.fit = fit;
   e.drive_model = drive_model_note_.empty() || angle_note_.empty() ? drive_model_note_ + angle_note_
