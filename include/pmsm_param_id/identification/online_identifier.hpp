@@ -195,6 +195,9 @@ class OnlineIdentifier {
   double settlingTimeS() const;
   /// How long the exact fit has been consistent without a break (0 where it is not) [s].
   double consistentForS() const;
+  /// Within the long window's time constant of the drive model's adoption (of the first sample
+  /// with a declared model): where a remembered angle is formed and held (rememberedAngle()).
+  bool angleMemoryOpen() const;
   /// Nothing about the drive declared: switches to the real drive's model where the data show one.
   void watchDriveModel();
   /// Once the logged angle's quantum is decided: the flux columns' smoothing (automatic, with one).

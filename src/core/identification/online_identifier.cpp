@@ -848,9 +848,8 @@ bool OnlineIdentifier::refreshSearchBox() {
   }
   // The drive's voltage angle, remembered from the fit that determines it best once the fit has held
   // consistent for the settling time (the hold behind the observer's: a fit that has just become
-  // consistent may still move with the observer's model).
-  if (!rememberedAngle()) remembered_angle_ = RememberedAngle{};  // its time is up: a new one may form
-  if (fit.consistent && fit.voltage_angle_modelled && consistentForS() >= settlingTimeS() &&
+  // consistent may still move with the observer's model); only while it can be used.
+  if (angleMemoryOpen() && fit.consistent && fit.voltage_angle_modelled && consistentForS() >= settlingTimeS() &&
       std::isfinite(fit.own_voltage_angle) && fit.own_voltage_angle_std < remembered_angle_.standard_deviation) {
     remembered_angle_.angle = fit.own_voltage_angle;
     remembered_angle_.standard_deviation = fit.own_voltage_angle_std;
@@ -1214,11 +1213,15 @@ const RememberedAngle* OnlineIdentifier::rememberedAngle() const {
   // (Measured along the four-minute switching-level duty cycle, FBDAPSO's L_q identified more than
   // 2 % off: held without limit in 47 of 172 733 estimates, worst 3.68 %; for 10 s after the window
   // that gave it, in 1-5 of about 52 000, worst 3.10 %.)
-  const double tau_long = stats_.settings().long_time_constant;
-  const double since = std::isfinite(model_since_t_) ? model_since_t_ : first_sample_t_;
-  if (!remembered_angle_.known() || !(last_t_ - remembered_angle_.t <= tau_long) || !(last_t_ - since <= tau_long))
+  if (!remembered_angle_.known() || !angleMemoryOpen() ||
+      !(last_t_ - remembered_angle_.t <= stats_.settings().long_time_constant))
     return nullptr;
   return &remembered_angle_;
+}
+
+bool OnlineIdentifier::angleMemoryOpen() const {
+  const double since = std::isfinite(model_since_t_) ? model_since_t_ : first_sample_t_;
+  return last_t_ - since <= stats_.settings().long_time_constant;
 }
 
 double OnlineIdentifier::settlingTimeS() const {
