@@ -661,8 +661,10 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
       // The rotor's speed within the period, for the forward observer's back EMF: the counted
       // angle's increment. An encoder's period holds a whole number of counts (8 or 9 of 3.07 mrad
       // on the robot joint at 600 rpm: up to 12 % off, 0.15 V of back EMF), so with a quantum the
-      // increment over the last kObserverRatePeriods periods (doc/algorithm.md section 8).
-      const std::size_t back = smoothing_samples_ > 0 ? std::min<std::size_t>(kObserverRatePeriods, count_) : 1;
+      // increment over the last kObserverRatePeriods periods (doc/algorithm.md section 8). Only the
+      // forward observer reads it.
+      const std::size_t back =
+          smoothing_samples_ > 0 && observerFollowsForward() ? std::min<std::size_t>(kObserverRatePeriods, count_) : 1;
       const Cumulative& from = ring_[wrap(head_ + count_ - back)];
       const double span = c.t - from.t;
       const double rotor_rate = span > 0 && std::isfinite(from.theta_e) ? (c.Om - from.Om) / span : (c.Om - p.Om) / dt;
