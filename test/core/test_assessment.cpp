@@ -102,6 +102,18 @@ TEST(AnyMotor, TheEndsOfTheSupportedRange) {
   }
 }
 
+TEST(Assessment, TheInverterIsNamedWhereItHoldsHalfOfAnUncertaintyOrMore) {
+  // +-2 % with V free, +-1 % with V known: sqrt(4 - 1) = 1.73 % is the inverter's, named with V,
+  // where V comes from, what V is and what would separate them, in that order.
+  const std::string named = inverterShareClause(0.02, 0.01, 12.3, 0.035, ", from the long window", ": dead time",
+                                                "; a load step separates them");
+  EXPECT_EQ(named, "; +-1.73 % of it (in quadrature) from the inverter's error voltage (12.3 V +-3.5 %, from the long "
+                   "window: dead time), which acts as a resistance at any one current magnitude; a load step separates them");
+  // +-0.62 % of +-2 %: less than half, not named; nor where the uncertainty is not finite.
+  EXPECT_EQ(inverterShareClause(0.02, 0.019, 12.3, 0.035, "", "", ""), "");
+  EXPECT_EQ(inverterShareClause(std::numeric_limits<double>::infinity(), 0.01, 12.3, 0.035, "", "", ""), "");
+}
+
 TEST(Assessment, NoiseLevelIsEstimatedFromTheData) {
   const Estimate e = identify(samplesOf(drive("wc1_drive.yaml")), "rls");
   // 0.03 A of noise plus 12-bit quantisation (LSB 24 mA: 7 mA rms) = 0.031 A.

@@ -35,6 +35,15 @@ constexpr ParameterVector kPlausibleLower{1e-4, 1e-7, 1e-7, 1e-5};
 constexpr ParameterVector kPlausibleUpper{1e3, 10.0, 10.0, 50.0};
 bool plausible(int parameter, double value);
 
+/// The clause of a `not_excited` reason that names the inverter's error voltage (V [V], its relative
+/// uncertainty at the confidence level) as the part of a parameter's relative uncertainty
+/// `statistical` that `known_inverter` (the same with V known) lacks, in quadrature, where that part
+/// is half of it or more; "" otherwise. `source` is said after V's uncertainty (where V comes from),
+/// `nature` after that (what V is), `separation` at the end (what would separate them). One wording
+/// for the fitness window's reasons and the slow window's.
+std::string inverterShareClause(double statistical, double known_inverter, double V, double V_relative,
+                                const std::string& source, const std::string& nature, const std::string& separation);
+
 /// What the fit diagnosis names as the likely cause of a misfit.
 enum class MisfitCause : std::uint8_t {
   None = 0,

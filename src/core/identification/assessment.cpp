@@ -28,6 +28,18 @@ std::string format(const char* fmt, double a, double b = 0.0, double c = 0.0) {
   std::snprintf(buf, sizeof buf, fmt, a, b, c);
   return buf;
 }
+}  // namespace
+
+std::string inverterShareClause(double statistical, double known_inverter, double V, double V_relative,
+                                const std::string& source, const std::string& nature, const std::string& separation) {
+  const double from_inverter = std::sqrt(std::max(0.0, statistical * statistical - known_inverter * known_inverter));
+  if (!(std::isfinite(statistical) && from_inverter >= 0.5 * statistical)) return "";
+  return format("; +-%.3g %% of it (in quadrature) from the inverter's error voltage (%.3g V +-%.2g %%", 100 * from_inverter, V,
+                100 * V_relative) +
+         source + nature + "), which acts as a resistance at any one current magnitude" + separation;
+}
+
+namespace {
 
 bool fitsAtNoise(double ms, double noise, double floor2, double max_ratio) { return ms <= max_ratio * noise + floor2; }
 
@@ -740,14 +752,12 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
                "voltage (an unrecorded angle prediction, a omega_e T_s); a load step or a speed change in the "
                "window separates them, or declare time.angle_prediction";
       // The part of it the inverter's error voltage accounts for, named where it is a quarter of the variance or more.
-      const double known_inverter = a.confidence_sigmas * fit.relative_std_known_inverter[p];
-      const double from_inverter = std::sqrt(std::max(0.0, statistical * statistical - known_inverter * known_inverter));
-      if (fit.inverter_modelled && std::isfinite(statistical) && from_inverter >= 0.5 * statistical)
-        why += format("; +-%.3g %% of it (in quadrature) from the inverter's error voltage (%.3g V +-%.2g %%", 100 * from_inverter,
-                      fit.inverter_voltage, 100 * a.confidence_sigmas * fit.inverter_relative_std) +
-               (fit.inverter_from_long_window ? ", from the long window" : "") +
-               ": dead time and device drops), which acts as a resistance at any one current magnitude; current "
-               "magnitudes further apart (a load step, a d-axis injection) or a longer log separate them";
+      if (fit.inverter_modelled)
+        why += inverterShareClause(statistical, a.confidence_sigmas * fit.relative_std_known_inverter[p], fit.inverter_voltage,
+                                   a.confidence_sigmas * fit.inverter_relative_std,
+                                   fit.inverter_from_long_window ? ", from the long window" : "", ": dead time and device drops",
+                                   "; current magnitudes further apart (a load step, a d-axis injection) or a longer log "
+                                   "separate them");
       continue;
     }
     if (!(a.min_relative_uncertainty + fit.sampling_floor <= limit)) {

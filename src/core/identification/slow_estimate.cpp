@@ -217,14 +217,11 @@ SlowAssessment assessSlow(const SlowFit& fit, const AssessmentSettings& a, const
       st = ParameterStatus::NotExcited;
       why = std::isfinite(statistical) ? window + format(" determines it only to +-%.3g %% (need %.3g %%)", 100 * statistical, 100 * limit)
                                        : window + " does not determine it";
-      const double known_inverter = a.confidence_sigmas * fit.relative_std_known_inverter[p];
-      const double from_inverter = std::sqrt(std::max(0.0, statistical * statistical - known_inverter * known_inverter));
-      if (fit.inverter_modelled && std::isfinite(statistical) && from_inverter >= 0.5 * statistical)
-        why += format("; +-%.3g %% of it (in quadrature) from the inverter's error voltage (%.3g V +-%.2g %%", 100 * from_inverter,
-                      fit.inverter_voltage, 100 * a.confidence_sigmas * fit.inverter_relative_std) +
-               (fit.inverter_held ? ", as the slow window last determined it" : "") +
-               "), which acts as a resistance at any one current magnitude: a load change (current magnitudes "
-               "further apart within the slow window) separates them";
+      if (fit.inverter_modelled)
+        why += inverterShareClause(statistical, a.confidence_sigmas * fit.relative_std_known_inverter[p], fit.inverter_voltage,
+                                   a.confidence_sigmas * fit.inverter_relative_std,
+                                   fit.inverter_held ? ", as the slow window last determined it" : "", "",
+                                   ": a load change (current magnitudes further apart within the slow window) separates them");
       continue;
     }
     if (!std::isfinite(lag)) {
