@@ -1869,6 +1869,30 @@ TEST(DriveModel, AMotorChangeForgetsTheRememberedAngle) {
   }
 }
 
+TEST(DriveModel, ALoadStepOnAHealthyDriveIsNoStepOfTheMotor) {
+  // Behind the inverter a load step determines R_s far better than the window at one current
+  // magnitude before it did, and the two optima lie apart by several per cent within their own
+  // uncertainties: judged by the new fit's uncertainty alone, the load step at 3 s read as a step of
+  // R_s (seed 4), and L_q moving by 2.3 % at 15.4 s as one of L_q (seed 1, its fit before at 0.96 %),
+  // each starting the long and the slow window again. The demagnetisation at 14 s is a step.
+  const auto motorChanges = [](const Scenario& s) {
+    IdentifierConfig c;
+    c.method = "wls";
+    auto id = makeIdentifier(c);
+    for (const auto& x : test_helpers::run(s)) id->process(x.sample);
+    return id->counters().motor_changes;
+  };
+  for (int seed : {1, 4}) {
+    Scenario faulty = test_helpers::scenario("real_drive_demagnetisation.yaml");
+    faulty.seed = seed;
+    faulty.duration = 16.0;
+    Scenario healthy = faulty;
+    healthy.psi_f_scale = Profile::constant(1.0);
+    EXPECT_EQ(motorChanges(healthy), 0u) << "seed " << seed;
+    EXPECT_GE(motorChanges(faulty), 1u) << "seed " << seed;
+  }
+}
+
 TEST(DriveModel, TheRememberedAngleStandsInForTheLongWindowsFirstTimeConstant) {
   // The same drive without the fault (the real drive's model adopted at 0.45 s): remembered from the
   // load step at 8 s and held until the long window (10 s) no longer holds the blocks of the

@@ -37,6 +37,9 @@ const char* toString(SampleStatus s);
 struct IdentifierCounters {
   std::uint64_t used = 0, skipped_nonfinite = 0, skipped_duplicate = 0, skipped_too_close = 0, time_resets = 0,
                 gaps = 0, period_changes = 0;
+  /// Step changes of the motor seen by the fitness window (a fault, a demagnetisation), each of
+  /// which started the long and the slow window again.
+  std::uint64_t motor_changes = 0;
   std::uint64_t skipped() const { return skipped_nonfinite + skipped_duplicate + skipped_too_close; }
 };
 
@@ -247,6 +250,7 @@ class OnlineIdentifier {
   double noise_std_ = 0.0;
   std::uint64_t samples_since_refresh_ = 0;
   ParameterVector watched_optimum_{};
+  ParameterVector watched_relative_std_{};  ///< its fit's relative standard deviations (inf: undetermined)
   bool have_watched_ = false;
   std::array<bool, kParameterCount> optimum_inside_{};
   mutable std::uint64_t fit_blocks_ = ~0ull;  // block count of the cached fit

@@ -821,15 +821,21 @@ bool OnlineIdentifier::refreshSearchBox() {
   updateSlow(fit);
   // A sudden change of the motor (a step of R_s, L_d, L_q or psi_f: a fault, a demagnetisation)
   // would read, in the long check window of differenced blocks, as a unit error for its whole
-  // memory. When the model fits the window again and a well-determined optimum has moved by more
-  // than 2 % and 5 standard deviations from the last one that fitted, the long window starts again.
-  // (With a wrong unit the fit never settles, so the evidence of the unit is kept.)
+  // memory. When the model fits the window again and an optimum has moved by more than 2 % and 5
+  // standard deviations of the change (both fits' own, in quadrature) from the last one that
+  // fitted, the long window starts again. (The change's, not the new fit's alone: behind an
+  // inverter a load step determines R_s to 0.4 % where the window before it, at one current
+  // magnitude, left it at 6-7 %, and on a healthy drive R_s moved between them by 5-29 %: each
+  // such restart cleared the slow window's history, and with it the winding temperature, doc/
+  // algorithm.md section 9.) (With a wrong unit the fit never settles, so the evidence of the unit
+  // is kept.)
   if (fit.consistent && have_watched_) {
     for (int p = 0; p < kParameterCount; ++p) {
       if (!(fit.determined[p] && std::isfinite(fit.relative_std[p]))) continue;
       const double change = std::abs(fit.optimum[p] / watched_optimum_[p] - 1.0);
-      if (change > 0.02 && change > 5.0 * fit.relative_std[p]) {
+      if (change > 0.02 && change > 5.0 * std::hypot(fit.relative_std[p], watched_relative_std_[p])) {
         stats_.resetLongWindow();  // and the slow window
+        ++counters_.motor_changes;
         slow_history_.clear();
         recent_optima_.clear();
         // And the remembered angle: the angle a window fits absorbs a share of what the model
@@ -841,6 +847,8 @@ bool OnlineIdentifier::refreshSearchBox() {
   }
   if (fit.consistent) {
     watched_optimum_ = fit.optimum;
+    for (int p = 0; p < kParameterCount; ++p)
+      watched_relative_std_[p] = fit.determined[p] ? fit.relative_std[p] : std::numeric_limits<double>::infinity();
     have_watched_ = true;
     if (!std::isfinite(consistent_since_s_)) consistent_since_s_ = last_t_;
   } else {
