@@ -269,6 +269,13 @@ class OnlineIdentifier {
   DriveConstants drive_constants_;  // as the slow window determined them best
   SlowFit slow_fit_;
   double slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
+  /// Where a step of the motor last started the slow window again [s] (NaN: never, or forgotten).
+  double slow_restarted_t_ = std::numeric_limits<double>::quiet_NaN();
+  /// The slow window started again less than the fitness window's time constant ago.
+  bool slowRestarting() const {
+    return std::isfinite(slow_restarted_t_) && last_t_ >= slow_restarted_t_ &&
+           last_t_ - slow_restarted_t_ < stats_.forgettingTimeConstant();
+  }
   std::deque<std::pair<double, ParameterVector>> slow_history_;  // (t, optimum) of consistent slow fits
   // The optima of the fitness a swarm searches over the last forgetting time constant (t,
   // optimum), every tenth of it: the references a method trailing the window is assessed against,

@@ -336,6 +336,7 @@ void OnlineIdentifier::adoptWindow(const WindowSettings& w, std::optional<BlockS
   model_since_t_ = last_t_;
   slow_fit_ = SlowFit{};
   slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
+  slow_restarted_t_ = std::numeric_limits<double>::quiet_NaN();
   slow_history_.clear();
   recent_optima_.clear();
   last_remembered_t_ = -std::numeric_limits<double>::infinity();
@@ -546,6 +547,7 @@ void OnlineIdentifier::reset() {
   drive_constants_ = DriveConstants{};
   slow_fit_ = SlowFit{};
   slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
+  slow_restarted_t_ = std::numeric_limits<double>::quiet_NaN();
   slow_history_.clear();
   recent_optima_.clear();
   last_remembered_t_ = -std::numeric_limits<double>::infinity();
@@ -836,6 +838,9 @@ bool OnlineIdentifier::refreshSearchBox() {
       if (change > 0.02 && change > 5.0 * std::hypot(fit.relative_std[p], watched_relative_std_[p])) {
         stats_.resetLongWindow();  // and the slow window
         ++counters_.motor_changes;
+        slow_restarted_t_ = last_t_;
+        slow_fit_ = SlowFit{};  // of blocks across the step
+        slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
         slow_history_.clear();
         recent_optima_.clear();
         // And the remembered angle: the angle a window fits absorbs a share of what the model
@@ -928,6 +933,15 @@ std::optional<TrailedOptima> OnlineIdentifier::trailedOptima(const FitCheck& fit
 }
 
 void OnlineIdentifier::updateSlow(const FitCheck& fast) {
+  // Started again after a step of the motor, the window's first blocks do not yet hold the new
+  // motor's operating point (fitted, R_s -7e23 ohm at a residual of 0 / 1634 times the noise): it
+  // is fitted once it holds one time constant of the fitness window's data.
+  if (slowRestarting()) {
+    slow_fit_ = SlowFit{};
+    slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
+    slow_lag_.fill(std::numeric_limits<double>::infinity());
+    return;
+  }
   const double tau = stats_.slowTimeConstant();
   if (std::isfinite(slow_fit_t_) && last_t_ >= slow_fit_t_ && last_t_ - slow_fit_t_ < tau / 20) return;
   slow_fit_ = slowFit(stats_, config_.assessment, fast, drive_constants_, last_t_);
@@ -1116,6 +1130,17 @@ Estimate OnlineIdentifier::estimate() const {
           e.slow.status[p] = ParameterStatus::NotExcited;
           e.slow.reason[p] = width_pending;
         }
+    if (slowRestarting()) {
+      char why[200];
+      std::snprintf(why, sizeof why,
+                    "the slow window started again at t = %.4g s after a step of the motor; it is fitted once it holds "
+                    "the fitness window's time constant (%.3g s) of the new motor's data",
+                    slow_restarted_t_, stats_.forgettingTimeConstant());
+      for (int p : {kRs, kPsiF}) {
+        e.slow.status[p] = ParameterStatus::NoData;
+        e.slow.reason[p] = why;
+      }
+    }
     for (int p = 0; p < kParameterCount; ++p) e.slow.identifiable[p] = e.slow.status[p] == ParameterStatus::Identified;
     e.slow.window_time_constant = stats_.slowTimeConstant();
     e.slow.t = slow_fit_t_;
