@@ -271,6 +271,9 @@ class OnlineIdentifier {
   double slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
   /// Where a step of the motor last started the slow window again [s] (NaN: never, or forgotten).
   double slow_restarted_t_ = std::numeric_limits<double>::quiet_NaN();
+  /// The slow fit, its lag and its history forgotten (a new drive model, a restart of the stream, a
+  /// step of the motor at restarted_t; NaN for none).
+  void forgetSlowFit(double restarted_t);
   /// The slow window started again less than the fitness window's time constant ago.
   bool slowRestarting() const {
     return std::isfinite(slow_restarted_t_) && last_t_ >= slow_restarted_t_ &&

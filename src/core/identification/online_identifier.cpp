@@ -334,10 +334,7 @@ void OnlineIdentifier::adoptWindow(const WindowSettings& w, std::optional<BlockS
   remembered_angle_ = RememberedAngle{};
   fit_held_remembered_angle_ = false;
   model_since_t_ = last_t_;
-  slow_fit_ = SlowFit{};
-  slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
-  slow_restarted_t_ = std::numeric_limits<double>::quiet_NaN();
-  slow_history_.clear();
+  forgetSlowFit(std::numeric_limits<double>::quiet_NaN());
   recent_optima_.clear();
   last_remembered_t_ = -std::numeric_limits<double>::infinity();
 }
@@ -545,10 +542,7 @@ void OnlineIdentifier::reset() {
   fit_blocks_ = ~0ull;
   learnt_ = restored_;
   drive_constants_ = DriveConstants{};
-  slow_fit_ = SlowFit{};
-  slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
-  slow_restarted_t_ = std::numeric_limits<double>::quiet_NaN();
-  slow_history_.clear();
+  forgetSlowFit(std::numeric_limits<double>::quiet_NaN());
   recent_optima_.clear();
   last_remembered_t_ = -std::numeric_limits<double>::infinity();
   pending_R_reference_ = pending_psi_reference_ = PendingReference{};
@@ -838,10 +832,7 @@ bool OnlineIdentifier::refreshSearchBox() {
       if (change > 0.02 && change > 5.0 * std::hypot(fit.relative_std[p], watched_relative_std_[p])) {
         stats_.resetLongWindow();  // and the slow window
         ++counters_.motor_changes;
-        slow_restarted_t_ = last_t_;
-        slow_fit_ = SlowFit{};  // of blocks across the step
-        slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
-        slow_history_.clear();
+        forgetSlowFit(last_t_);  // its last fit is of blocks across the step
         recent_optima_.clear();
         // And the remembered angle: the angle a window fits absorbs a share of what the model
         // misses, which a changed motor changes (doc/algorithm.md section 8).
@@ -932,16 +923,19 @@ std::optional<TrailedOptima> OnlineIdentifier::trailedOptima(const FitCheck& fit
   return out;
 }
 
+void OnlineIdentifier::forgetSlowFit(double restarted_t) {
+  slow_fit_ = SlowFit{};
+  slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
+  slow_lag_.fill(std::numeric_limits<double>::infinity());
+  slow_history_.clear();
+  slow_restarted_t_ = restarted_t;
+}
+
 void OnlineIdentifier::updateSlow(const FitCheck& fast) {
   // Started again after a step of the motor, the window's first blocks do not yet hold the new
   // motor's operating point (fitted, R_s -7e23 ohm at a residual of 0 / 1634 times the noise): it
   // is fitted once it holds one time constant of the fitness window's data.
-  if (slowRestarting()) {
-    slow_fit_ = SlowFit{};
-    slow_fit_t_ = std::numeric_limits<double>::quiet_NaN();
-    slow_lag_.fill(std::numeric_limits<double>::infinity());
-    return;
-  }
+  if (slowRestarting()) return;
   const double tau = stats_.slowTimeConstant();
   if (std::isfinite(slow_fit_t_) && last_t_ >= slow_fit_t_ && last_t_ - slow_fit_t_ < tau / 20) return;
   slow_fit_ = slowFit(stats_, config_.assessment, fast, drive_constants_, last_t_);
