@@ -1,6 +1,7 @@
 // pmsm_tool identify: R_s, L_d, L_q, psi_f (and the map of the motor) from a drive log.
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -75,11 +76,66 @@ int runSteadyState(const std::string& csv, const SampleLog& log, const Identifie
   }
   return 0;
 }
+
+// --trace: the estimate every kEstimatePeriod of stamp time, one CSV row each (what the node
+// would have published along the log).
+class TraceWriter {
+ public:
+  explicit TraceWriter(const std::string& path) : path_(path) {
+    if (path.empty()) return;
+    f_ = std::fopen(path.c_str(), "w");
+    if (!f_) throw ConfigError("--trace: cannot write " + path);
+    std::fprintf(f_, "t");
+    for (const std::string& n : parameterNames()) std::fprintf(f_, ",%s,%s_status,%s_relative_uncertainty", n.c_str(), n.c_str(), n.c_str());
+    for (const char* n : {"slow_R_s", "slow_psi_f"}) std::fprintf(f_, ",%s,%s_status,%s_relative_uncertainty", n, n, n);
+    std::fprintf(f_, ",inverter_voltage,fit_consistent,residual_over_noise_d,residual_over_noise_q,"
+                 "winding_temperature,winding_temperature_uncertainty,magnet_temperature,magnet_temperature_uncertainty\n");
+  }
+  ~TraceWriter() {
+    if (f_) std::fclose(f_);
+  }
+  TraceWriter(const TraceWriter&) = delete;
+  TraceWriter& operator=(const TraceWriter&) = delete;
+  bool active() const { return f_ != nullptr; }
+  void write(const Estimate& e) {
+    std::fprintf(f_, "%.9g", e.t);
+    for (int p = 0; p < kParameterCount; ++p) row(e.parameters[p], e.status[p], e.relative_uncertainty[p]);
+    const double nan = std::numeric_limits<double>::quiet_NaN();  // an empty field
+    const bool slow_fitted = std::isfinite(e.slow.t);  // the slow window has been fitted at all
+    for (int p : {kRs, kPsiF})
+      row(slow_fitted ? e.slow.parameters[p] : nan, e.slow.status[p], e.slow.relative_uncertainty[p]);
+    number(e.inverter_voltage);
+    if (e.fit.available) std::fprintf(f_, ",%d", e.fit.consistent ? 1 : 0);
+    else std::fprintf(f_, ",");
+    for (double v : {e.fit.available ? e.fit.fit_ratio_d : nan, e.fit.available ? e.fit.fit_ratio_q : nan,
+                     e.winding_temperature.value, e.winding_temperature.uncertainty, e.magnet_temperature.value,
+                     e.magnet_temperature.uncertainty})
+      number(v);
+    std::fprintf(f_, "\n");
+  }
+  void close() {
+    if (f_ && std::fclose(f_) != 0) throw ConfigError("--trace: writing " + path_ + " failed");
+    f_ = nullptr;
+  }
+
+ private:
+  void number(double v) {  // NaN and inf as an empty field
+    if (std::isfinite(v)) std::fprintf(f_, ",%.9g", v);
+    else std::fprintf(f_, ",");
+  }
+  void row(double value, ParameterStatus status, double relative_uncertainty) {
+    number(status == ParameterStatus::NoData ? std::numeric_limits<double>::quiet_NaN() : value);
+    std::fprintf(f_, ",%s", toString(status));
+    number(relative_uncertainty);
+  }
+  std::string path_;
+  std::FILE* f_ = nullptr;
+};
 }  // namespace
 
 int runIdentify(const std::string& csv, const std::string& method, const std::string& config_path, long seed,
                 const std::string& json_out, const LogFormat& format, const std::string& map_csv,
-                const std::string& thermal_state, const std::string& data_kind) {
+                const std::string& thermal_state, const std::string& data_kind, const std::string& trace_csv) {
   const bool steady_method = method == "steady_state";
   const IdentifierConfig config = configFor(config_path, steady_method ? std::string() : method, seed);
   if (!thermal_state.empty() && !config.thermal.enabled)
@@ -98,8 +154,8 @@ int runIdentify(const std::string& csv, const std::string& method, const std::st
                    "(--data current_loop if the time column's unit is wrong instead: --time-unit)\n", csv.c_str(), T);
   }
   if (telemetry) {
-    if (!thermal_state.empty() || !map_csv.empty())
-      throw ConfigError("--thermal-state and --map-csv need the current loop's samples; this log is telemetry");
+    if (!thermal_state.empty() || !map_csv.empty() || !trace_csv.empty())
+      throw ConfigError("--thermal-state, --map-csv and --trace need the current loop's samples; this log is telemetry");
     return runSteadyState(csv, log, config, method, json_out);
   }
   auto id = makeIdentifier(config);
@@ -109,15 +165,18 @@ int runIdentify(const std::string& csv, const std::string& method, const std::st
     std::fprintf(stderr, "thermal references from %s (not learnt again)\n", thermal_state.c_str());
   }
   MotorMap map(config.map);
-  double next_map = -INFINITY;  // an estimate into the map every kEstimatePeriod of stamp time
+  TraceWriter trace(trace_csv);
+  double next_estimate = -INFINITY;  // an estimate into the map (and the trace) every kEstimatePeriod of stamp time
   std::size_t warnings = 0;
   for (std::size_t k = 0; k < log.samples.size(); ++k) {
     const SampleStatus st = id->process(log.samples[k]);
     if (st != SampleStatus::Used && warnings++ < 20)
       std::fprintf(stderr, "%s:%zu: %s\n", csv.c_str(), log.line_numbers[k], toString(st));
-    if (st == SampleStatus::Used && log.samples[k].t >= next_map && id->statistics().hasBlocks()) {
-      map.add(id->estimate());
-      next_map = log.samples[k].t + kEstimatePeriod;
+    if (st == SampleStatus::Used && log.samples[k].t >= next_estimate && id->statistics().hasBlocks()) {
+      const Estimate e = id->estimate();
+      map.add(e);
+      if (trace.active()) trace.write(e);
+      next_estimate = log.samples[k].t + kEstimatePeriod;
     }
   }
   if (warnings > 20) std::fprintf(stderr, "%s: %zu more warnings not shown\n", csv.c_str(), warnings - 20);
@@ -130,6 +189,10 @@ int runIdentify(const std::string& csv, const std::string& method, const std::st
     return 2;
   }
   printEstimate(e, config.thermal.enabled);
+  if (trace.active()) {
+    trace.close();
+    std::printf("estimates along the log written to %s\n", trace_csv.c_str());
+  }
   if (!thermal_state.empty() && id->learntReferences().any() && id->learntReferences() != restored) {
     writeThermalState(thermal_state, id->learntReferences(), config.method);
     std::printf("thermal references written to %s\n", thermal_state.c_str());

@@ -2,6 +2,7 @@
 // The command line; each subcommand lives in its own file (commands.hpp).
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -54,6 +55,10 @@ int main(int argc, char** argv) {
   ident->add_option("--fitness", tool::fitness_override, "block | paper | paper_one_step (swarm methods; overrides the config)");
   std::string map_csv;
   ident->add_option("--map-csv", map_csv, "write the map of the motor learnt from the log as a flux-map CSV");
+  std::string trace_csv;
+  ident->add_option("--trace", trace_csv,
+                    "write the estimate every " + std::to_string(std::lround(tool::kEstimatePeriod * 1e3)) +
+                        " ms of log time as CSV (values, statuses, stated uncertainties, slow estimates, temperatures)");
   std::string thermal_state;
   ident->add_option("--thermal-state", thermal_state,
                     "YAML of the thermal references a cold start learnt: read if it exists, written when learnt");
@@ -124,7 +129,7 @@ int main(int argc, char** argv) {
       if (!dq_scaling.empty()) format.dq_scaling = dq_scaling;
       if (pole_pairs != 0) format.pole_pairs = pole_pairs;
       format.validate(format_path.empty() ? "command line" : format_path + " and the command line");
-      return tool::runIdentify(csv, method, config, seed, json_out, format, map_csv, thermal_state, data_kind);
+      return tool::runIdentify(csv, method, config, seed, json_out, format, map_csv, thermal_state, data_kind, trace_csv);
     }
     if (*bench) return tool::runBench(scenario, seeds, methods, config, json_out, reference, threads, monitor, map_roundtrip);
     if (*perf) return tool::runPerf(scenario, methods, config, std::max(1, repeat), json_out, paper_scenario, drive_scenario);

@@ -240,6 +240,37 @@ class Tools(unittest.TestCase):
         self.assertEqual(e["time_resets"], 1)
         self.assertEqual(e["samples"], 2000)  # 2001 rows, one skipped
 
+    def test_identify_traces_the_estimate_along_the_log(self):
+        tmp = tempfile.mkdtemp(prefix="pmsm_trace_")
+        scenario = os.path.join(ROOT, "config", "scenarios", "wc1_drive.yaml")
+        csv, trace, out = (os.path.join(tmp, n) for n in ("log.csv", "trace.csv", "e.json"))
+        self.assertEqual(tool("pmsm_tool", "simulate", "--scenario", scenario, "--csv", csv, "--duration", "0.4").returncode, 0)
+        r = tool("pmsm_tool", "identify", "--csv", csv, "--method", "wls", "--trace", trace, "--json", out)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("estimates along the log written to " + trace, r.stdout)
+        with open(trace) as f:
+            rows = list(csv_module.DictReader(f))
+        with open(out) as f:
+            final = json.load(f)
+        times = [float(row["t"]) for row in rows]
+        # One row every 10 ms of log time from the first fitness block on, to the log's end.
+        self.assertGreater(len(rows), 30)
+        self.assertTrue(all(0.0099 < b - a < 0.0102 for a, b in zip(times, times[1:])), times[:5])
+        self.assertGreater(times[-1], final["t"] - 0.0101)
+        last = rows[-1]
+        for name in ("R_s", "L_d", "L_q", "psi_f"):
+            self.assertIn(last[name + "_status"], ("identified", "not_excited", "poor_fit", "no_data"))
+            # 10 ms before the end the exact fit already holds the final values.
+            self.assertAlmostEqual(float(last[name]) / final[name], 1.0, delta=2e-3, msg=name)
+        self.assertEqual(last["R_s_status"], final["status"]["R_s"])
+        self.assertTrue(0 < float(last["L_q_relative_uncertainty"]) < 0.01)
+        telemetry = os.path.join(tmp, "slow.csv")
+        self.assertEqual(tool("pmsm_tool", "simulate", "--scenario", scenario, "--csv", telemetry, "--duration", "2",
+                              "--telemetry-period", "0.02").returncode, 0)
+        r = tool("pmsm_tool", "identify", "--csv", telemetry, "--trace", trace)
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("--trace need the current loop's samples; this log is telemetry", r.stderr)
+
     def test_too_few_samples_for_the_horizon_is_a_clear_error(self):
         tmp = tempfile.mkdtemp(prefix="pmsm_identify_")
         csv = os.path.join(tmp, "short.csv")
