@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "pmsm_param_id/identification/angle_quantum.hpp"
 #include "pmsm_param_id/identification/block_least_squares.hpp"
 #include "pmsm_param_id/identification/identifier_config.hpp"
 
@@ -122,7 +123,24 @@ struct FitCheck {
   /// estimate (its own uncertainty left out): where this is within the limit and relative_std is
   /// not, the parameter (R_s) cannot be told from the inverter's error voltage in this data.
   ParameterVector relative_std_known_inverter{};
+  /// Per parameter: where the encoder's count is locked to the sampling, what the drive's frame
+  /// wobbling against the rotor by half a count with the d current moves it by (countLockMoves),
+  /// added to the stated uncertainty [-]; zero where not locked.
+  ParameterVector count_lock{};
 };
+
+/// Where the encoder's count was locked to the sampling over a window (CountLock): the frame may
+/// wobble against the rotor by up to half a count (the quantum q [rad]), and a d-axis injection's
+/// torque ripple moves the rotor in phase with i_d, so the d voltage carries up to
+/// psi_f omega_e (q / 2) (i_d - mean) / swing, swing = sqrt(2) times the d current's spread. What
+/// that moves each parameter of the fit f by (its entries `hold` held, the window's sums w),
+/// scaled by the window's locked share [-]; zeros where nothing was locked.
+ParameterVector countLockMoves(const WindowSums& w, const LinearBlockModel& model, const BlockFit& f,
+                               const std::vector<bool>& hold, const CountLock::Window& lock, double quantum,
+                               double variance_inflation);
+/// The clause a reason takes where countLockMoves (relative_move [-]) is a quarter or more of a
+/// parameter's stated uncertainty.
+std::string countLockClause(double relative_move);
 
 /// The drive's voltage angle as an earlier fitness window determined it (a constant of the drive:
 /// its angle prediction and computation delay). A window spanning a load step or a speed reversal

@@ -31,6 +31,7 @@
 #include <utility>
 #include <vector>
 
+#include "pmsm_param_id/identification/angle_quantum.hpp"
 #include "pmsm_param_id/model/frames.hpp"
 #include "pmsm_param_id/model/motor_model.hpp"
 #include "pmsm_param_id/model/sample.hpp"
@@ -87,6 +88,10 @@ struct WindowSettings {
   /// blocks then end m samples behind the newest (the mean needs m samples after the block's end).
   /// < 0: chosen by the identifier from the data (OnlineIdentifier::watchAngleQuantum; 0 here).
   int angle_smoothing_samples = -1;
+  /// The logged angle's quantum (an encoder's count) [rad]; 0 = none. With one, the statistics
+  /// track whether the count is locked to the sampling over slow_time_constant (CountLock).
+  /// Found from the data (OnlineIdentifier::watchAngleQuantum), not configured.
+  double angle_quantum = 0.0;
 };
 
 /// The inverter error as the block model carries it: the amplitude V split over the shapes' entries.
@@ -355,6 +360,11 @@ class BlockStatistics {
   const BlockD& lastBlockD() const { return last_d_; }
   const BlockQ& lastBlockQ() const { return last_q_; }
   const WindowSettings& settings() const { return settings_; }
+  /// Whether the encoder's count has been locked to the sampling over slow_time_constant, with the
+  /// d current's mean and spread over the same (nothing tracked without angle_quantum).
+  const CountLock& countLock() const { return count_lock_; }
+  /// Sets angle_quantum (WindowSettings) from here on.
+  void setAngleQuantum(double quantum) { settings_.angle_quantum = quantum; }
 
  private:
   struct Cumulative {      // running integrals since the last continuity break
@@ -457,6 +467,7 @@ class BlockStatistics {
   int smoothing_samples_ = 0;         // m of angle_smoothing_samples (at most the block length)
   std::uint64_t stretch_samples_ = 0;  // samples since the last continuity break
   PhasorTracker angle_phasor_;  // cos and sin of the logged angle, sample by sample
+  CountLock count_lock_;        // the encoder's count against the sampling (settings_.angle_quantum)
   // Stored sums are scaled by 1 / (product of the forgetting factors so far): adding a block is
   // then one rank-1 update with no pass over the matrices; rescaled before the scale overflows.
   ProductD S_d_ = ProductD::Zero(), dS_d_ = ProductD::Zero();

@@ -58,6 +58,10 @@ struct SlowFit {
   /// added to the stated uncertainty as it is.
   ParameterVector inverter_model_relative{};
   double inverter_model_spread = 0.0;  ///< that spread [V]
+  /// Where the encoder's count is locked to the sampling (CountLock): what a wobble of the drive's
+  /// frame against the rotor by half a count, in phase with the d current's swing, moves each
+  /// parameter by [-]; a bound, added to the stated uncertainty as it is (0 where not locked).
+  ParameterVector count_lock_relative{};
   bool inverter_modelled = false;
   bool inverter_held = false;      ///< V and its shape taken from DriveConstants
   double inverter_voltage = NAN;   ///< the V in the fit [V]

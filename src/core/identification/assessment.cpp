@@ -324,6 +324,38 @@ BlockFit jointFit(const WindowSums& window, const BlockFit& own, const WindowSum
 bool angleHeldFromElsewhere(const FitCheck& fit) { return fit.voltage_angle_from_long_window || fit.voltage_angle_remembered; }
 }  // namespace
 
+ParameterVector countLockMoves(const WindowSums& w, const LinearBlockModel& model, const BlockFit& f,
+                               const std::vector<bool>& hold, const CountLock::Window& lock, double quantum,
+                               double variance_inflation) {
+  ParameterVector moves{};
+  const double swing = std::sqrt(2.0) * lock.i_d_spread;  // a sinusoidal injection's amplitude [A]
+  if (!(lock.locked_share > 0) || !(quantum > 0) || !(swing > 0) || !f.ok || !std::isfinite(f.beta(kPsiF))) return moves;
+  // The d voltage entry moved by c (int omega_e i_d dt - mean int omega_e dt): z' = A z with
+  // A = I + c e_U e_OmId' - c mean e_U e_Om', so each product matrix becomes A M A'.
+  const double c = lock.locked_share * std::abs(f.beta(kPsiF)) * 0.5 * quantum / swing;  // [V s / A]
+  ProductD A = ProductD::Identity();
+  A(kIntegralUd, kIntegralOmegaIdInD) += c;
+  A(kIntegralUd, kIntegralOmegaInD) -= c * lock.i_d_mean;
+  WindowSums moved = w;
+  moved.mean_d = A * w.mean_d * A.transpose();
+  moved.mean_difference_d = A * w.mean_difference_d * A.transpose();
+  const BlockFit base = BlockLeastSquares::fit(w, model, f.beta, hold, variance_inflation);
+  const BlockFit shifted = BlockLeastSquares::fit(moved, model, f.beta, hold, variance_inflation);
+  for (int p = 0; p < kParameterCount; ++p)
+    moves[p] = base.ok && shifted.ok ? std::abs(shifted.beta(p) - base.beta(p)) / std::abs(f.beta(p))
+                                     : std::numeric_limits<double>::infinity();
+  return moves;
+}
+
+std::string countLockClause(double relative_move) {
+  return format("; the encoder's count is locked to the sampling (the same number of counts every period): +-%.3g %% "
+                "from the drive's frame wobbling against the rotor with i_d, as the d-axis injection shakes it within a "
+                "count that is not seen; the wobble reads as a resistance (and psi_f follows R_s at one operating "
+                "point); a speed at which the count rate is not a whole number of counts per period, or a finer "
+                "encoder, separates them",
+                100 * relative_move);
+}
+
 FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, const ParameterVector& start,
                   bool diagnose_misfit, bool estimate_inverter, double inverter_start, bool estimate_cross,
                   const RememberedAngle* remembered) {
@@ -505,6 +537,8 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
   }
   out.relative_std_known_timing = out.relative_std;
   out.relative_std_known_inverter = out.relative_std;
+  out.count_lock = countLockMoves(window, model, f, held, stats.countLock().detectionWindow(), stats.settings().angle_quantum,
+                                  a.variance_inflation);
   if (estimate_inverter) {
     // The same window with V and its shape held where the fit left them free (or without their
     // uncertainty where the long window gave them): where a parameter is determined then and not
@@ -728,7 +762,7 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
     }
     const double crossing = p == kLd ? fit.crossing_floor : 0.0;
     out.relative_uncertainty[p] = std::max(statistical + distance, a.min_relative_uncertainty) +
-                                  fit.sampling_floor + crossing + fit.model_floor[p];
+                                  fit.sampling_floor + crossing + fit.model_floor[p] + fit.count_lock[p];
     if (!fit.consistent) {
       st = ParameterStatus::PoorFit;
       why = format("the model does not fit the data: block residual %.3g (d) / %.3g (q) times what the noise explains",
@@ -782,6 +816,8 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
           (fit.sampling_floor > 0 ? format(" + sampling +-%.3g %%", 100 * fit.sampling_floor) : std::string()) +
           (crossing > 0 ? format(" + zero crossings within a period +-%.3g %%", 100 * crossing) : std::string()) +
           (fit.model_floor[p] > 0 ? format(" + the inverter model's own error +-%.3g %%", 100 * fit.model_floor[p]) : std::string()) +
+          (fit.count_lock[p] > 0 ? format(" + the encoder's count locked to the sampling %.3g %%", 100 * fit.count_lock[p])
+                                 : std::string()) +
           format(" (need %.3g %%)", 100 * limit);
       const bool method_is_off = distance > std::max(statistical, a.min_relative_uncertainty);
       st = method_is_off ? ParameterStatus::NotConverged : ParameterStatus::NotExcited;
@@ -801,6 +837,9 @@ Assessment assess(const ParameterVector& x, const FitCheck& fit, const std::arra
     if ((p == kLq || p == kPsiF) && !fit.speed_unit_verified)
       why += " (through the speed terms only: no q-axis current steps seen yet, so a wrong speed unit could not show)";
   }
+  for (int p = 0; p < kParameterCount; ++p)  // where a locked count weighs in, the reason says so
+    if (out.status[p] == ParameterStatus::NotExcited && fit.count_lock[p] > 0.25 * out.relative_uncertainty[p])
+      out.reason[p] += countLockClause(fit.count_lock[p]);
   return out;
 }
 

@@ -30,6 +30,7 @@ void BlockStatistics::reset() {
   stretch_samples_ = 0;
   smoothing_samples_ = 0;
   angle_phasor_.reset();
+  count_lock_.reset();
   S_d_.setZero();
   S_q_.setZero();
   dS_d_.setZero();
@@ -128,6 +129,7 @@ void BlockStatistics::setAngleSmoothing(int samples) {
 
 void BlockStatistics::breakContinuity() {
   count_ = 0;
+  count_lock_.breakContinuity();
   stretch_samples_ = 0;
   have_previous_block_ = false;
   have_long_block_ = false;
@@ -638,6 +640,9 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
       c.OmIq = p.OmIq + g * (p.i_q + s.i_q);
       c.OmId = p.OmId + g * (p.i_d + s.i_d);
       c.Om = p.Om + dtheta;
+      if (settings_.angle_quantum > 0)  // weighed per nominal period (a sample's own dt jitters in its last bits)
+        count_lock_.add(dtheta, settings_.angle_quantum, nominal_period_, forgetting_time_constant_,
+                        settings_.slow_time_constant, s.i_d);
       const double mean_speed = 0.5 * (p.omega_e + s.omega_e);
       pending_speed_travel_ += std::abs(mean_speed) * dt;
       pending_angle_travel_ += mean_speed >= 0 ? dtheta : -dtheta;

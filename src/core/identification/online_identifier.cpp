@@ -512,7 +512,8 @@ void OnlineIdentifier::reset() {
   const WindowSettings& d = declared_window_;
   const WindowSettings& w = config_.window;
   if (drive_model_switched_ || w.inverter_zero_crossing_current != d.inverter_zero_crossing_current ||
-      w.inverter_edge_shape != d.inverter_edge_shape || w.angle_smoothing_samples != d.angle_smoothing_samples) {
+      w.inverter_edge_shape != d.inverter_edge_shape || w.angle_smoothing_samples != d.angle_smoothing_samples ||
+      w.angle_quantum != d.angle_quantum) {
     config_.window = declared_window_;
     config_.inverter = declared_inverter_;
     stats_ = BlockStatistics(windowFor(config_));
@@ -557,6 +558,11 @@ void OnlineIdentifier::reset() {
 
 void OnlineIdentifier::watchAngleQuantum() {
   const double q = angle_quantum_.quantum();
+  if (q > 0) {  // whether the count locks to the sampling: tracked whatever the smoothing (CountLock)
+    config_.window.angle_quantum = q;
+    stats_.setAngleQuantum(q);
+    if (other_delay_) other_delay_->setAngleQuantum(q);
+  }
   if (!(q > 0) || declared_window_.angle_smoothing_samples >= 0 || !stats_.configured()) return;
   // 2 m + 1 = 17 samples cut the quantisation error at a block's ends about fourfold; at most a
   // fifth of the block keeps the mean local to its end (doc/algorithm.md section 8).

@@ -1,7 +1,9 @@
 #include "pmsm_param_id/identification/slow_estimate.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -99,6 +101,7 @@ SlowFit slowFit(const BlockStatistics& stats, const AssessmentSettings& a, const
     shifts.emplace_back(angle_index, constants.angle_std);
   }
   BlockFit f = free_fit;
+  std::vector<bool> f_hold;  // the entries f holds
   ParameterVector inverter_shift{}, angle_shift{};
   if (!shifts.empty()) {
     const BlockFit known = BlockLeastSquares::fit(w, model, at, hold, a.variance_inflation);
@@ -113,6 +116,7 @@ SlowFit slowFit(const BlockStatistics& stats, const AssessmentSettings& a, const
     }
     if (ok) {
       f = known;
+      f_hold = hold;
       out.inverter_held = hold[4];
       out.angle_held = angle && hold[static_cast<std::size_t>(angle_index)];
     } else {
@@ -134,6 +138,8 @@ SlowFit slowFit(const BlockStatistics& stats, const AssessmentSettings& a, const
       out.inverter_model_relative[p] = base_v.ok && shifted.ok ? std::abs(shifted.beta(p) - base_v.beta(p)) / std::abs(f.beta(p))
                                                                : std::numeric_limits<double>::infinity();
   }
+  out.count_lock_relative = countLockMoves(w, model, f, f_hold, stats.countLock().window(), stats.settings().angle_quantum,
+                                         a.variance_inflation);
   out.available = true;
   out.fit_ratio_d = f.mean_square_d / w.noise_variance_d;
   out.fit_ratio_q = f.mean_square_q / w.noise_variance_q;
@@ -204,7 +210,8 @@ SlowAssessment assessSlow(const SlowFit& fit, const AssessmentSettings& a, const
     // in progress) makes the stated uncertainty unknown: nothing is identified, no temperature.
     const double lag = std::isnan(lag_relative[p]) ? std::numeric_limits<double>::infinity() : std::abs(lag_relative[p]);
     const double model = fit.inverter_modelled ? fit.inverter_model_relative[p] : 0.0;
-    out.relative_uncertainty[p] = std::max(statistical, a.min_relative_uncertainty) + lag + model;
+    const double lock = fit.count_lock_relative[p];
+    out.relative_uncertainty[p] = std::max(statistical, a.min_relative_uncertainty) + lag + model + lock;
     if (!fit.consistent) {
       st = ParameterStatus::PoorFit;
       why = window + format(" does not fit one set of parameters: residual %.3g (d) / %.3g (q) times what the noise "
@@ -240,6 +247,7 @@ SlowAssessment assessSlow(const SlowFit& fit, const AssessmentSettings& a, const
                           fit.inverter_model_spread, 100 * model) +
                        (p == kRs ? " (at a larger current it weighs less)" : "")
                  : std::string()) +
+            (lock > 0 ? format(" + the encoder's count locked to the sampling %.3g %%", 100 * lock) : std::string()) +
             format(" (need %.3g %%)", 100 * limit);
       continue;
     }
@@ -265,6 +273,9 @@ SlowAssessment assessSlow(const SlowFit& fit, const AssessmentSettings& a, const
     why = format("+-%.3g %%", 100 * out.relative_uncertainty[p]) +
           (fit.inverter_held ? " (the inverter's error voltage as the slow window last determined it)" : "");
   }
+  for (int p = 0; p < kParameterCount; ++p)  // where a locked count weighs in, the reason says so
+    if (out.status[p] == ParameterStatus::NotExcited && fit.count_lock_relative[p] > 0.25 * out.relative_uncertainty[p])
+      out.reason[p] += countLockClause(fit.count_lock_relative[p]);
   return out;
 }
 
