@@ -50,7 +50,7 @@ class CountLock {
  public:
   /// Consecutive steps of the same number of counts, as a share of the steps over the fitness
   /// window's time constant, at or above which the count is locked. Measured on the switching-level
-  /// industrial drive (10 000 counts, 8 kHz): 0.98 at 1200 rpm (25 counts every period), 0.58 at
+  /// industrial drive (10 000 counts, 8 kHz): 0.96 at 1200 rpm (25 counts every period), 0.58 at
   /// 1190 rpm, 0.33 at 800 rpm.
   static constexpr double kLockedShare = 0.9;
 
