@@ -14,6 +14,7 @@
 #include "pmsm_param_id/identification/motor_map.hpp"
 #include "pmsm_param_id/identification/online_identifier.hpp"
 #include "pmsm_param_id/identification/sample_period.hpp"
+#include "pmsm_param_id/identification/slow_estimate.hpp"
 #include "pmsm_param_id/io/config_error.hpp"
 #include "pmsm_param_id/io/log_format.hpp"
 #include "pmsm_param_id/io/sample_csv.hpp"
@@ -1425,6 +1426,38 @@ TEST(SlowWindow, WindingTemperatureBehindASwitchingInverterLiesWithinItsStatedUn
   EXPECT_LE(outside, reported / 20) << outside << " of " << reported << " outside; worst " << worst << " K";
   EXPECT_LT(worst, 6.0);
   EXPECT_EQ(slow_rs_identified, 0);  // behind an inverter R_s is never identified by the slow window
+}
+
+// The slow window behind an inverter, its history too short for its lag: R_s's reason names the
+// inverter, which waiting does not change, and psi_f's the lag, which it does.
+TEST(SlowWindow, BehindAnInverterTheResistancesReasonNamesTheInverterBeforeTheLag) {
+  SlowFit fit;
+  fit.available = fit.consistent = true;
+  fit.fit_ratio_d = fit.fit_ratio_q = 1.0;
+  fit.window_time_constant = 1.0;
+  fit.optimum = {3.6, 0.036, 0.051, 0.55};
+  fit.determined.fill(true);
+  fit.relative_std.fill(0.0015);
+  fit.relative_std_known_inverter = fit.relative_std;
+  fit.inverter_modelled = true;
+  fit.inverter_voltage = 12.3;
+  fit.inverter_relative_std = 0.01;
+  const AssessmentSettings a;
+  ParameterVector unknown;
+  unknown.fill(std::numeric_limits<double>::quiet_NaN());
+  const SlowAssessment slow = assessSlow(fit, a, unknown);
+  EXPECT_EQ(slow.status[kRs], ParameterStatus::NotExcited);
+  EXPECT_NE(slow.reason[kRs].find("not identified behind an inverter"), std::string::npos) << slow.reason[kRs];
+  EXPECT_NE(slow.reason[kRs].find("+-0.45 % statistical (how far it trails a changing value not yet known)"), std::string::npos)
+      << slow.reason[kRs];
+  EXPECT_EQ(slow.status[kPsiF], ParameterStatus::NotExcited);
+  EXPECT_NE(slow.reason[kPsiF].find("how far it trails a changing value is not known"), std::string::npos) << slow.reason[kPsiF];
+  // With the lag known and small, psi_f is identified; R_s still is not, with its stated value.
+  ParameterVector none{};
+  const SlowAssessment known = assessSlow(fit, a, none);
+  EXPECT_EQ(known.status[kPsiF], ParameterStatus::Identified) << known.reason[kPsiF];
+  EXPECT_EQ(known.status[kRs], ParameterStatus::NotExcited);
+  EXPECT_EQ(known.reason[kRs].rfind("+-0.45 % across the current magnitudes", 0), 0u) << known.reason[kRs];
 }
 
 // A 4 % psi_f fall within 0.2 s: the slow psi_f trails it and must not be identified meanwhile.
