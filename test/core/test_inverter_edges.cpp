@@ -164,6 +164,7 @@ TEST(InverterEdges, TheReplayExplainsTheSwitchingSimulatorWhereCurrentsCrossZero
     Scenario s = test_helpers::scenario(file);
     s.sensors = {};
     s.inverter.device_drop = 0.0;
+    s.inverter.device_resistance = 0.0;
     s.duration = 0.6;
     std::vector<Vec2> error, edges, replay;
     for (const SimulatedPeriod& x : periodsOf(s)) {
@@ -198,6 +199,7 @@ TEST(InverterEdges, TheReplayFollowsTheHeldVectorsBendAndTheRotorsTurnAtEachLoss
   Scenario s = test_helpers::scenario("robot_joint_pwm.yaml");
   s.sensors = {};
   s.inverter.device_drop = 0.0;
+  s.inverter.device_resistance = 0.0;
   s.duration = 0.4;
   const double V = s.drive.dc_bus_voltage * s.inverter.dead_time / s.drive.sample_period, T = s.drive.sample_period;
   double chord_d = 0, chord_q = 0, full_d = 0, full_q = 0;
@@ -243,6 +245,7 @@ TEST(InverterEdges, FollowedForwardThePeriodEndsWhereTheMotorsCurrentDoesAndItsE
   Scenario s = test_helpers::scenario("robot_joint_pwm.yaml");
   s.sensors = {};
   s.inverter.device_drop = 0.0;
+  s.inverter.device_resistance = 0.0;
   s.duration = 0.4;
   const double V = s.drive.dc_bus_voltage * s.inverter.dead_time / s.drive.sample_period;
   const double R = s.motor.R_s, L_d = s.motor.L_d, L_q = s.motor.L_q, psi = s.motor.psi_f;

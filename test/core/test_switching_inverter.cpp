@@ -82,6 +82,40 @@ TEST(SwitchingInverter, DeadTimeAndDropsCostFourOverPiTimesTheErrorVoltageAlongT
   EXPECT_NEAR(data.back().inverter_error_voltage, v_err, 1e-9);
 }
 
+TEST(SwitchingInverter, OnStateResistanceActsAsAResistanceInSeriesWithEveryPhase) {
+  // Theory: each pole loses R_on times its phase current whichever device conducts (a MOSFET's
+  // channel both ways), so the period's mean applied voltage is the reference less R_on i in d-q,
+  // with no zero-crossing shape: the inverter's terminals see R_s + R_on, and the truth says so.
+  // Measured (R_on 5 % of R_s): -0.25 % / -0.05 % in R_on, the largest period 0.35 % / 0.14 % of
+  // R_on |i| beside it (industrial_pwm_steady / robot_joint_pwm).
+  for (const char* name : {"industrial_pwm_steady.yaml", "robot_joint_pwm.yaml"}) {
+    Scenario s = scenario(name);
+    s.sensors = {};
+    s.d_current_injection = Profile::constant(0.0);
+    s.duration = 0.3;
+    s.inverter.dead_time = 0.0;
+    s.inverter.device_drop = 0.0;
+    s.inverter.device_resistance = 0.05 * s.motor.R_s;
+    const double r = s.inverter.device_resistance;
+    const auto data = run(s);
+    double ei = 0, ii = 0, worst = 0, largest = 0;
+    for (std::size_t k = 0; k + 1 < data.size(); ++k) {
+      const SimulatedSample& x = data[k];
+      if (x.sample.t < 0.1) continue;
+      // The period's mean current: the trapezoid between the period's two samples.
+      const double i_d = 0.5 * (x.i_d_true + data[k + 1].i_d_true), i_q = 0.5 * (x.i_q_true + data[k + 1].i_q_true);
+      const double ed = x.u_d_applied - x.u_d_ideal, eq = x.u_q_applied - x.u_q_ideal;
+      ei += ed * i_d + eq * i_q;
+      ii += i_d * i_d + i_q * i_q;
+      worst = std::max(worst, std::hypot(ed + r * i_d, eq + r * i_q));
+      largest = std::max(largest, r * std::hypot(i_d, i_q));
+      EXPECT_NEAR(x.truth[kRs], s.motor.R_s + r, 1e-12 * s.motor.R_s) << name;
+    }
+    EXPECT_NEAR(-ei / ii, r, 0.01 * r) << name;
+    EXPECT_LT(worst, 0.02 * largest) << name << ": largest period error beside -R_on i " << worst << " V";
+  }
+}
+
 TEST(SwitchingInverter, DeadTimeFollowsTheActualCurrentNotTheSampledOne) {
   // At a light load the ripple makes the phase current change sign within a period near every
   // zero crossing: there the pulse-width loss is partial, so the mean error is below the average

@@ -29,7 +29,12 @@ struct DriveSettings {
 struct InverterSettings {
   double dead_time = 0.0;              ///< [s]; the pole-voltage error is V_dc t_dead f_sw + device_drop
   double switching_frequency = 0.0;    ///< [Hz]; 0 = 1 / sample_period
-  double device_drop = 0.0;            ///< on-state voltage of a switch or diode [V]
+  double device_drop = 0.0;            ///< on-state threshold voltage of a switch or diode [V] (IGBTs, diodes)
+  /// On-state slope resistance of the conducting switch or diode [ohm]: each pole loses it times its
+  /// phase current. A MOSFET bridge's loss (its channel conducts both ways: R_ds,on i, no threshold).
+  /// In series with every phase at every instant, it adds to the winding's resistance as the
+  /// inverter's terminals see it.
+  double device_resistance = 0.0;
   double zero_crossing_current = 0.1;  ///< the error passes zero smoothly, tanh(i / this) [A]
   bool stationary_hold = false;        ///< hold the voltage vector in the stator (alpha-beta) frame
   int computation_delay = 0;           ///< periods between computing a voltage and applying it: 0 or 1
@@ -54,7 +59,7 @@ struct InverterSettings {
     return dead_time > 0 || device_drop > 0 ? v_dc * dead_time * f + device_drop : 0.0;
   }
   bool active() const {
-    return dead_time > 0 || device_drop > 0 || stationary_hold || computation_delay > 0 || dc_ripple > 0 || switching ||
+    return dead_time > 0 || device_drop > 0 || device_resistance > 0 || stationary_hold || computation_delay > 0 || dc_ripple > 0 || switching ||
            anglePrediction() != computation_delay || log_applied_voltage;
   }
 };

@@ -79,6 +79,9 @@ SimulatedSample DriveSimulator::step() {
   out.magnetics = magneticState(plant, s.saturation, x_.i_d, x_.i_q);
   if (s.saturation.enabled)  // what each estimate stands for at this operating point (doc/simulator.md)
     out.truth = {plant.R_s, out.magnetics.L_dd, out.magnetics.L_q_secant, out.magnetics.psi_d_at_zero_i_d};
+  // Behind a bridge with an on-state resistance R_s stands for what the inverter's terminals see:
+  // the winding's resistance and the conducting device's, in series with every phase at every instant.
+  out.truth[kRs] += s.inverter.device_resistance;
   out.i_d_true = x_.i_d;
   out.i_q_true = x_.i_q;
 
@@ -239,6 +242,7 @@ SimulatedSample DriveSimulator::step() {
   std::array<bool, 3> dead_high{};
   std::array<double, 3> pinned_pole{NAN, NAN, NAN};
   const double v_on = inv.device_drop;
+  const double r_on = inv.device_resistance;
   // The rotor-frame hold's vector is the same all period (its angle is the period's start).
   const Vec2 held_at_start = rotate(stator, -theta_start);
   // Applied d-q voltage for a plant state inside the period; `park` = e^{-j theta_e} of that state
@@ -255,7 +259,7 @@ SimulatedSample DriveSimulator::step() {
           continue;
         }
         if (st == kDead) st = dead_high[k] ? kHigh : kLow;  // the diode that carries the current
-        pole[k] = (st == kHigh ? v_dc : 0.0) - v_on * sgn;
+        pole[k] = (st == kHigh ? v_dc : 0.0) - v_on * sgn - r_on * i[k];
       }
       return rotate(clarke(pole[0], pole[1], pole[2]), park);  // the zero sequence drops out
     }
@@ -266,6 +270,8 @@ SimulatedSample DriveSimulator::step() {
       u.x -= v_err * e.x;
       u.y -= v_err * e.y;
     }
+    u.x -= r_on * x.i_d;  // the devices' on-state resistance, in series with every phase
+    u.y -= r_on * x.i_q;
     return u;
   };
   // The period's integration steps: integration_substeps equal ones, and with the switching model

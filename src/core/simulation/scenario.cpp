@@ -47,6 +47,7 @@ Scenario loadScenario(const std::string& path) {
     y.fail("inverter.dead_time", "must be in [0, 0.2 x drive.sample_period] [s]");
   inv.switching_frequency = y.nonNegative("inverter.switching_frequency", 0.0, " (0 = 1 / sample_period)");
   inv.device_drop = y.nonNegative("inverter.device_drop", 0.0, " [V]");
+  inv.device_resistance = y.nonNegative("inverter.device_resistance", 0.0, " [ohm]");
   inv.zero_crossing_current = y.positive("inverter.zero_crossing_current", inv.zero_crossing_current);
   const std::string hold = y.oneOf("inverter.voltage_hold", "dq", {"dq", "stationary"});
   inv.stationary_hold = hold == "stationary";
