@@ -131,13 +131,14 @@ TEST(SwitchingInverter, DeadTimeFollowsTheActualCurrentNotTheSampledOne) {
 }
 
 TEST(SwitchingInverter, ACurrentTheDeadTimeDrivesThroughZeroStaysThereAtAnyStepSize) {
-  // The robot joint (48 V, 40/60 uH, 0.75 us): within one dead time the current moves about 0.5 A,
+  // The robot joint (48 V, 40/60 uH, 0.75 us, its devices' loss a 0.05 V threshold, which changes
+  // sign with the current as the diodes do): within one dead time the current moves about 0.5 A,
   // so near the ripple's zero crossings a dead leg's diode drives its current to zero, and where
   // the other diode would drive it back neither conducts: it stays at zero until the switch turns
   // on. Located as an event, the period's applied voltage is the same with 10 integration steps
   // per period as with 400: measured 0.26 % of the error voltage's RMS apart. (The sign taken at
   // each Runge-Kutta stage instead averaged the two diodes across the crossing: 4.6 % apart.)
-  Scenario s = scenario("robot_joint_pwm.yaml");
+  Scenario s = scenario("robot_joint_pwm_threshold.yaml");
   s.sensors = {};
   s.duration = 0.1;
   Scenario fine = s;
