@@ -59,8 +59,8 @@ struct InverterSettings {
     return dead_time > 0 || device_drop > 0 ? v_dc * dead_time * f + device_drop : 0.0;
   }
   bool active() const {
-    return dead_time > 0 || device_drop > 0 || device_resistance > 0 || stationary_hold || computation_delay > 0 || dc_ripple > 0 || switching ||
-           anglePrediction() != computation_delay || log_applied_voltage;
+    return dead_time > 0 || device_drop > 0 || device_resistance > 0 || stationary_hold || computation_delay > 0 ||
+           dc_ripple > 0 || switching || anglePrediction() != computation_delay || log_applied_voltage;
   }
 };
 
