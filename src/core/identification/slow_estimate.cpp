@@ -231,14 +231,15 @@ SlowAssessment assessSlow(const SlowFit& fit, const AssessmentSettings& a, const
                                    ": a load change (current magnitudes further apart within the slow window) separates them");
       continue;
     }
-    // Behind an inverter R_s is never identified here. The average dead-time error changes with
-    // the current's ripple share, so V differs between the window's current magnitudes (and more
-    // so from other operating points, where a held V was determined) by more than any one window
-    // shows, and that reads as a resistance (measured: the slow R_s 1.3-2.7 % off at a stated
-    // +-0.7-1 % across load steps of the switching-level drive; with the rule lifted, on the duty
-    // cycle behind it, 775 of 3 844 identified slow R_s outside their stated uncertainty, worst
-    // 1.52 % off). The value still gives the winding temperature with its stated uncertainty
-    // (bench: outside it in 1.6 % of the reported winding temperatures on that drive).
+    // Behind an inverter R_s is never identified here. It separates from the inverter's error
+    // voltage V only across the window's load changes, and a load change is also what turns the
+    // winding's temperature trend, so the window reads part of R_s's turn as a change of V
+    // (measured with the rule lifted, on the switching-level duty cycle: 775 of 3 844 identified
+    // slow R_s outside their stated uncertainty, worst 1.52 % off; on the same drive, timing and
+    // loads without the thermal model, none of 5 925, worst 0.41 %; an ideal drive's R_s needs no
+    // V, and its thermal runs stay within their stated uncertainty). The value still gives the
+    // winding temperature with its stated uncertainty (bench: outside it in 1.6 % of the reported
+    // winding temperatures on that drive).
     if (p == kRs && fit.inverter_modelled) {
       st = ParameterStatus::NotExcited;
       // (Named before the lag: waiting for the window's history does not change it.)
@@ -248,9 +249,10 @@ SlowAssessment assessSlow(const SlowFit& fit, const AssessmentSettings& a, const
             (fit.inverter_held ? "with the inverter's error voltage as the slow window last determined it, at other current "
                                  "magnitudes; "
                                : "across the current magnitudes in the slow window; ") +
-            "not identified behind an inverter: its error voltage changes with the current's ripple share, and that "
-            "reads as a resistance (current magnitudes all well above the ripple, where the error voltage no longer "
-            "changes, would separate them); the winding temperature is given from it with its uncertainty";
+            "not identified behind an inverter: R_s separates from its error voltage only across load changes, and a "
+            "load change also turns the winding's temperature, which the window then reads as a change of that voltage "
+            "(R_s's own rate within the window, from a thermal model of the winding, would separate them); the winding "
+            "temperature is given from it with its uncertainty";
       continue;
     }
     if (!std::isfinite(lag)) {
