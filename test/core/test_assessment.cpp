@@ -359,6 +359,23 @@ TEST(Assessment, AMethodTrailingTheWindowIsStatedAgainstTheOptimumItTrails) {
   EXPECT_EQ(named.status[kLd], ParameterStatus::NotExcited);
   EXPECT_NEAR(named.relative_uncertainty[kLd], 0.0075 + 0.003 / 0.9965, 1e-6);
   EXPECT_NE(named.reason[kLd].find("(its optimum 25 ms ago)"), std::string::npos) << named.reason[kLd];
+  // The searched fitness's optimum now 10 % from the data's (the data's fit holds a voltage angle
+  // the swarm's fitness has not adopted yet), the value at the searched optima: stated against
+  // them plus that gap, so not identified; 0.05 % apart, the gap is added to the earlier one's distance.
+  ParameterVector searched = fit.optimum;
+  searched[kLd] = 1.1e-3;
+  RecentOptimum stale{0.025, 0.4, true, searched};
+  const ParameterVector at_searched = {1.0, 1.1e-3, 2.0e-3, 0.1};
+  const TrailedOptima apart{searched, {stale}};
+  const Assessment other_fitness = assess(at_searched, fit, {}, AssessmentSettings{}, &apart);
+  EXPECT_NE(other_fitness.status[kLd], ParameterStatus::Identified) << other_fitness.reason[kLd];
+  EXPECT_NEAR(other_fitness.relative_uncertainty[kLd], 0.0075 + 0.1e-3 / 1.1e-3, 1e-6);
+  searched[kLd] = 0.9995e-3;
+  earlier.optimum[kLd] = 0.9975e-3;
+  const TrailedOptima near_data{searched, {earlier}};
+  const Assessment close = assess(x, fit, {}, AssessmentSettings{}, &near_data);
+  EXPECT_EQ(close.status[kLd], ParameterStatus::Identified) << close.reason[kLd];
+  EXPECT_NEAR(close.relative_uncertainty[kLd], 0.0075 + (0.001e-3 + 0.0005e-3) / 0.9965e-3, 1e-6);
 }
 
 // ---------------------------------------------------------------------------------------------
