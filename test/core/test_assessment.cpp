@@ -2306,17 +2306,18 @@ TEST(AngleSmoothing, AnEncodersQuantumNoLongerHidesLqAndLd) {
 }
 
 TEST(AngleSmoothing, FbdapsoTrailingTheWindowIdentifiesLdWhereTheOptimumDoes) {
-  // robot_joint_realistic's L_d is determined to +-0.84-0.86 % on seeds 1 and 3; FBDAPSO's value
-  // trails the window's optimum, which moves by a tenth of a percent every few milliseconds, and
-  // stated against the current optimum alone it read +-1.19 and +-1.14 % (not identified). Against the
-  // optima of the last 25 ms, which held still within the noise, it is identified, and right.
-  for (const std::uint64_t seed : {1u, 3u}) {
-    const auto data = drive("robot_joint_realistic.yaml", seed, 0.0);
-    const std::string label = "seed " + std::to_string(seed);
-    const Estimate e = identify(samplesOf(data), "fbdapso", IdentifierConfig{});
-    EXPECT_EQ(e.status[kLd], ParameterStatus::Identified) << label << ": " << e.reason[kLd];
-    expectIdentifiedWithinStated(e, data.back().truth, label);
-  }
+  // robot_joint_realistic's L_d is determined to +-0.83 % on seed 1; FBDAPSO's value trails the
+  // window's optimum, which moves by a tenth of a percent every few milliseconds, and stated against
+  // the current optimum alone it reads more than 1 % (not identified; +-1.05 %). Against the optima of
+  // the last 25 ms, which held still within the noise, it is identified, and right.
+  const auto data = drive("robot_joint_realistic.yaml", 1, 0.0);
+  const Estimate e = identify(samplesOf(data), "fbdapso", IdentifierConfig{});
+  EXPECT_EQ(e.status[kLd], ParameterStatus::Identified) << e.reason[kLd];
+  expectIdentifiedWithinStated(e, data.back().truth, "seed 1");
+  const AssessmentSettings a;
+  const double against_now = a.confidence_sigmas * e.fit.relative_std[kLd] +
+                             std::abs(e.parameters[kLd] - e.fit.optimum[kLd]) / e.parameters[kLd] + e.fit.sampling_floor;
+  EXPECT_GT(against_now, a.max_relative_uncertainty);
 }
 
 TEST(DriveModel, ADeclaredDrivesInverterWidthIsMeasuredFromTheData) {

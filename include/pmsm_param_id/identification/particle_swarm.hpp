@@ -168,7 +168,7 @@ struct SwarmSettings {
   double w_max = 0.9, w_min = 0.4;
   int reset_iterations = 50;   ///< k_max of Eq. (5); the counter (and temperature) restarts here
   double v_max = 0.2;          ///< velocity limit per dimension, fraction of the search range
-  double restart_velocity = 0.02;  ///< velocities re-drawn in +-this (fraction of range) each cycle
+  double restart_velocity = 0.002;  ///< velocities re-drawn in +-this (fraction of range) each cycle
 };
 
 /// Minimises f over the box [lower, upper] in coordinates normalised to [0, 1] per dimension.
