@@ -2308,7 +2308,7 @@ TEST(AngleSmoothing, AnEncodersQuantumNoLongerHidesLqAndLd) {
 TEST(AngleSmoothing, FbdapsoTrailingTheWindowIdentifiesLdWhereTheOptimumDoes) {
   // robot_joint_realistic's L_d is determined to +-0.83 % on seed 1; FBDAPSO's value trails the
   // window's optimum, which moves by a tenth of a percent every few milliseconds, and stated against
-  // the current optimum alone it reads more than 1 % (not identified; +-1.05 %). Against the optima of
+  // the current optimum alone it reads more than 1 % (not identified). Against the optima of
   // the last 25 ms, which held still within the noise, it is identified, and right.
   const auto data = drive("robot_joint_realistic.yaml", 1, 0.0);
   const Estimate e = identify(samplesOf(data), "fbdapso", IdentifierConfig{});
@@ -2318,6 +2318,33 @@ TEST(AngleSmoothing, FbdapsoTrailingTheWindowIdentifiesLdWhereTheOptimumDoes) {
   const double against_now = a.confidence_sigmas * e.fit.relative_std[kLd] +
                              std::abs(e.parameters[kLd] - e.fit.optimum[kLd]) / e.parameters[kLd] + e.fit.sampling_floor;
   EXPECT_GT(against_now, a.max_relative_uncertainty);
+}
+
+TEST(AngleSmoothing, ASwarmAtTheOptimumOfItsOwnFitnessIsNotCreditedWhereTheDataHoldAnotherAngle) {
+  // telemetry_duty_cycle, FBDAPSO seed 7, at 20.44 s: the data's fit takes the drive's voltage angle
+  // from the long window, which moves its L_q from 0.0560 to 0.0510 H and determines it to +-0.9 %;
+  // the swarm's fitness still holds the angle of its last refresh, whose optimum the swarm sits at.
+  // Credited against that fitness's optima alone it was identified 9.9 % off. Along the run to
+  // 20.6 s (an estimate every 10 ms) nothing identified is more than 2 % off.
+  const auto data = drive("telemetry_duty_cycle.yaml", 7, 20.6);
+  IdentifierConfig c;
+  c.method = "fbdapso";
+  c.seed = 7;
+  auto id = makeIdentifier(c);
+  int identified_lq = 0;
+  double worst = 0.0;
+  for (std::size_t k = 0; k < data.size(); ++k) {
+    id->process(data[k].sample);
+    if (k % 80 != 79) continue;
+    const Estimate e = id->estimate();
+    for (int p = 0; p < kParameterCount; ++p) {
+      if (!e.identifiable[p]) continue;
+      worst = std::max(worst, std::abs(errorPercent(e.parameters[p], data[k].truth[p])));
+      if (p == kLq && data[k].sample.t > 20.4) ++identified_lq;
+    }
+  }
+  EXPECT_LT(worst, 2.0);
+  EXPECT_GT(identified_lq, 0);  // L_q is identified once the angle is taken
 }
 
 TEST(DriveModel, ADeclaredDrivesInverterWidthIsMeasuredFromTheData) {
