@@ -2315,9 +2315,8 @@ TEST(AngleSmoothing, FbdapsoTrailingTheWindowIdentifiesLdWhereTheOptimumDoes) {
   EXPECT_EQ(e.status[kLd], ParameterStatus::Identified) << e.reason[kLd];
   expectIdentifiedWithinStated(e, data.back().truth, "seed 1");
   const AssessmentSettings a;
-  const double against_now = a.confidence_sigmas * e.fit.relative_std[kLd] +
-                             std::abs(e.parameters[kLd] - e.fit.optimum[kLd]) / e.parameters[kLd] + e.fit.sampling_floor;
-  EXPECT_GT(against_now, a.max_relative_uncertainty);
+  const Assessment against_now = assess(e.parameters, e.fit, {}, a);  // no earlier optima
+  EXPECT_GT(against_now.relative_uncertainty[kLd], a.max_relative_uncertainty) << against_now.reason[kLd];
 }
 
 TEST(AngleSmoothing, ASwarmAtTheOptimumOfItsOwnFitnessIsNotCreditedWhereTheDataHoldAnotherAngle) {
