@@ -383,18 +383,23 @@ TEST(PaperFitness, SwarmFindsTheOptimumWhereTheModelIsExact) {
   const auto drive = cleanDrive("wc1_drive.yaml", 0.3);
   const ParameterVector truth = drive.back().truth;
   const std::vector<Sample> data = eulerData(truth, drive);
-  for (const char* method : {"fbdapso", "pso"}) {
+  // FBDAPSO over seeds 1-12 (a swarm held with L_d on the box's face, fitness 1.5 A^2, in 2 of
+  // them while its cycle's kick there was the small interior one), PSO on the default seed.
+  for (int seed = 1; seed <= 13; ++seed) {
+    const char* method = seed <= 12 ? "fbdapso" : "pso";
     IdentifierConfig c;
     c.method = method;
+    c.seed = seed <= 12 ? static_cast<std::uint64_t>(seed) : IdentifierConfig{}.seed;
     c.fitness = FitnessKind::Paper;
     auto id = makeIdentifier(c);
     for (const Sample& s : data) id->process(s);
     const Estimate e = id->estimate();
+    const std::string label = std::string(method) + " seed " + std::to_string(c.seed);
     for (int p = 0; p < kParameterCount; ++p)
-      EXPECT_NEAR(e.parameters[p] / truth[p], 1.0, 0.01) << method << " " << parameterNames()[p];
-    // The paper fitness at the estimate, not the block fitness. Measured over seeds 1-12: PSO
-    // 2e-10 - 8e-9 A^2, FBDAPSO 5e-7 - 3.3e-5 A^2 (its annealing keeps exploring).
-    EXPECT_LT(e.fitness, std::string(method) == "pso" ? 1e-7 : 1e-4) << method;
+      EXPECT_NEAR(e.parameters[p] / truth[p], 1.0, 0.01) << label << " " << parameterNames()[p];
+    // The paper fitness at the estimate, not the block fitness. Measured: PSO 2e-10 - 8e-9 A^2,
+    // FBDAPSO 5e-9 - 1.6e-7 A^2 over seeds 1-12.
+    EXPECT_LT(e.fitness, std::string(method) == "pso" ? 1e-7 : 1e-4) << label;
   }
 }
 
