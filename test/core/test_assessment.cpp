@@ -2380,6 +2380,36 @@ TEST(AngleSmoothing, ASwarmAtTheOptimumOfItsOwnFitnessIsNotCreditedWhereTheDataH
   EXPECT_GT(identified_lq, 0);  // L_q is identified once the angle is taken
 }
 
+TEST(AngleSmoothing, AWindowWhoseOwnAngleContradictsTheRememberedOneCarriesTheDifference) {
+  // telemetry_duty_cycle, wls (the data's optimum), seed 5: 20-40 ms after the load drop to 2 N m at
+  // 9 s the window fits its own voltage angle, 0.63-0.77 period against the 0.56 a settled window
+  // remembered, and its L_q read 2.0-2.3 % off, identified at +-0.73-0.84 %. Every sample from 9.0 to
+  // 9.06 s: nothing identified more than 2 % off, and at 9.03 s L_q not identified, its reason
+  // naming the disagreement. (Values just outside their stated uncertainty remain on this drive,
+  // doc/results.md.)
+  const auto data = drive("telemetry_duty_cycle.yaml", 5, 9.06);
+  IdentifierConfig c;
+  c.method = "wls";
+  c.seed = 5;
+  auto id = makeIdentifier(c);
+  bool named = false;
+  for (const auto& d : data) {
+    id->process(d.sample);
+    if (d.sample.t < 9.0) continue;
+    const Estimate e = id->estimate();
+    for (int p = 0; p < kParameterCount; ++p)
+      if (e.identifiable[p])
+        EXPECT_LE(std::abs(e.parameters[p] / d.truth[p] - 1.0), 0.02)
+            << "t = " << d.sample.t << " " << parameterNames()[p] << ": " << e.reason[p];
+    if (std::abs(d.sample.t - 9.03) < 1e-6) {
+      EXPECT_NE(e.status[kLq], ParameterStatus::Identified) << e.reason[kLq];
+      named = e.reason[kLq].find("against the drive's remembered one") != std::string::npos;
+      EXPECT_TRUE(named) << e.reason[kLq];
+    }
+  }
+  EXPECT_TRUE(named);
+}
+
 TEST(DriveModel, ADeclaredDrivesInverterWidthIsMeasuredFromTheData) {
   // real_drive.yaml leaves the inverter error's zero-crossing width to the data. Declared as 0.3 A
   // on robot_joint_realistic with an exact angle (the drive's own: 0.5 A), wls read R_s 2.14 % off

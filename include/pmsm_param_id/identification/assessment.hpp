@@ -119,6 +119,10 @@ struct FitCheck {
   /// Per parameter: the model's own systematic error (an inverter model's spread: what moving V by
   /// it moves the parameter by), added to the stated uncertainty [-]; zero where not assessed.
   ParameterVector model_floor{};
+  /// Per parameter: where the window fits its own voltage angle and that disagrees with the drive's
+  /// remembered one by more than one combined standard deviation, what holding the remembered angle
+  /// instead moves the parameter by, added to the stated uncertainty [-].
+  ParameterVector angle_disagreement{};
   /// Per parameter: the relative std with the inverter voltage and its shape held at their
   /// estimate (its own uncertainty left out): where this is within the limit and relative_std is
   /// not, the parameter (R_s) cannot be told from the inverter's error voltage in this data.
