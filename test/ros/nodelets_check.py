@@ -9,7 +9,7 @@ import rostest
 from ros_wait import wait_for
 from rosgraph_msgs.msg import Log
 
-from pmsm_param_id.msg import ElectricalParameters, ParameterEstimate
+from pmsm_param_id.msg import DriveSampleBatch, ElectricalParameters, ParameterEstimate
 
 
 class Nodelets(unittest.TestCase):
@@ -23,6 +23,11 @@ class Nodelets(unittest.TestCase):
             rospy.Subscriber("/identifiers/%s/estimate" % m, ParameterEstimate, estimates[m].append)
         rospy.Subscriber("/drive/true_parameters", ElectricalParameters, truth.append)
         rospy.Subscriber("/rosout", Log, log.append)
+        second = []
+        rospy.Subscriber("/identifier2/estimate", ParameterEstimate, second.append)
+        # The plant waits for this subscriber too (wait_for_subscribers 2), so the run cannot end before
+        # this node listens: on a loaded machine it started late and missed the last estimates.
+        rospy.Subscriber("/drive/samples_batch", DriveSampleBatch, lambda m: None)
         self.assertTrue(self.wait_for(lambda: rospy.has_param("/drive/samples_published"), 60), "plant did not finish")
         published = rospy.get_param("/drive/samples_published")
         self.assertEqual(published, 3000)
@@ -33,8 +38,6 @@ class Nodelets(unittest.TestCase):
             for name in ("L_q", "psi_f"):
                 self.assertLess(abs(getattr(last, name) / getattr(t, name) - 1.0), 0.01, (m, name))
         # The second plant, in real time, paced by the same thread: each of its samples once.
-        second = []
-        rospy.Subscriber("/identifier2/estimate", ParameterEstimate, second.append)
         self.assertTrue(self.wait_for(lambda: rospy.has_param("/drive2/samples_published"), 60), "drive2 did not finish")
         self.assertEqual(rospy.get_param("/drive2/samples_published"), 3000)
         self.assertTrue(self.wait_for(lambda: second and second[-1].samples_used == 3000, 30),
