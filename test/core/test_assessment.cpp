@@ -2444,6 +2444,30 @@ TEST(DriveModel, ADeclaredDrivesInverterWidthIsMeasuredFromTheData) {
   EXPECT_TRUE(e.identifiable[kPsiF]) << e.reason[kPsiF];
 }
 
+TEST(DriveModel, AWideZeroCrossingIsMeasuredBeyondTheLaddersFirstRung) {
+  // The automatic model's widths start at a quarter of the currents' RMS (10.6 A at the switch
+  // here: 2.65 A) and climb to the RMS where that rung is taken. An average-model inverter whose
+  // error passes zero over 6 A (as wide as a light load's ripple can make it on a low-inductance
+  // drive) is measured as such: 5.31 A, half the RMS; without the climb, 2.65 A.
+  Scenario s = test_helpers::scenario("robot_joint_realistic.yaml");
+  s.inverter.zero_crossing_current = 6.0;
+  const auto data = test_helpers::run(s);
+  IdentifierConfig c;
+  c.method = "wls";
+  std::unique_ptr<OnlineIdentifier> id = makeIdentifier(c);
+  for (const auto& d : data) id->process(d.sample);
+  const Estimate e = id->estimate();
+  const std::string key = "zero-crossing width ";
+  const std::size_t at = e.drive_model.find(key);
+  ASSERT_NE(at, std::string::npos) << e.drive_model;
+  const double width = std::stod(e.drive_model.substr(at + key.size()));
+  EXPECT_GT(width, 4.0) << e.drive_model;
+  EXPECT_LT(width, 8.0) << e.drive_model;
+  expectIdentifiedWithinStated(e, data.back().truth, "zero-crossing width 6 A");
+  EXPECT_TRUE(e.identifiable[kLd]) << e.reason[kLd];
+  EXPECT_TRUE(e.identifiable[kPsiF]) << e.reason[kPsiF];
+}
+
 TEST(DriveModel, ADeclaredDelayIsCheckedAgainstALogOfTheAppliedVoltage) {
   // real_drive.yaml declares the common convention, a log of the reference that acts a period
   // later. On the same drive's log of the voltage applied over each period the declaration is

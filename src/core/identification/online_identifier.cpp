@@ -412,7 +412,7 @@ double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, cons
   // resistance that changes with the current's magnitude (R_s +1 % at 6 A on the 36 mH drive with
   // 0.3 A against 0.1 A). So the width is measured: the recent samples go through the statistics
   // of each candidate, from the currents' RMS down by halves (the fitted shape mixes each width
-  // with twice it), and the one whose slow window the fit leaves the smallest residual is taken,
+  // with twice it; the two widest only where a quarter of the RMS is taken), and the one whose slow window the fit leaves the smallest residual is taken,
   // a narrower one only where its residual is lower by more than chance allows (the residual
   // flattens out below the true width, and the shares then trade against each other; a 5 % margin
   // was within chance: one seed of ten took a quarter of the width, and its L_d's zero-crossing
@@ -432,7 +432,11 @@ double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, cons
     std::optional<BlockStatistics> trial;
   } smooth_best, edge_best;
   const bool edges = angle_logged_ && inverter_voltage > 0 && fit.available && fit.optimum[kLd] > 0 && fit.optimum[kLq] > 0;
-  for (int trial_index = 0; trial_index < kZeroCrossingCandidates + (edges ? kEdgeWidthCandidates : 0); ++trial_index) {
+  // The smooth ladder starts at kFirstZeroCrossingCandidate; where its widest rung is taken, the
+  // ladder is climbed again from the currents' RMS (the rule compares each width with the wider
+  // ones, so the whole ladder is replayed).
+  int first = kFirstZeroCrossingCandidate;
+  for (int trial_index = first; trial_index < kZeroCrossingCandidates + (edges ? kEdgeWidthCandidates : 0); ++trial_index) {
     WindowSettings candidate = w;
     candidate.inverter_edge_shape = trial_index >= kZeroCrossingCandidates;
     // From half the smooth shape's width down, and a narrower one only while the last one fitted
@@ -456,6 +460,12 @@ double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, cons
       b.summary = t;
       b.width = candidate.inverter_zero_crossing_current;
       if (chosen) b.trial = std::move(trial);  // kept: the new model's statistics without another pass
+    }
+    if (trial_index == kZeroCrossingCandidates - 1 && first > 0 &&
+        smooth_best.summary.ratio < std::numeric_limits<double>::infinity() && smooth_best.width == rms * std::ldexp(1.0, -first)) {
+      first = 0;
+      trial_index = -1;  // the next pass: the currents' RMS
+      smooth_best = Best{};
     }
   }
   // The edges' shape is taken where its slow window's residual is the smaller: the data say which
