@@ -87,7 +87,9 @@ json estimateJson(const Estimate& e) {
     j["voltage_angle"] = {{"value", numberOrNull(e.fit.voltage_angle)},
                           {"standard_deviation", numberOrNull(e.fit.voltage_angle_std)},
                           {"from_long_window", e.fit.voltage_angle_from_long_window},
-                          {"remembered_from_t", e.fit.voltage_angle_remembered ? json(e.fit.voltage_angle_remembered_t) : json(nullptr)}};
+                          {"remembered_from_t", e.fit.voltage_angle_remembered ? json(e.fit.voltage_angle_remembered_t) : json(nullptr)},
+                          {"own_value", numberOrNull(e.fit.own_voltage_angle)},
+                          {"own_standard_deviation", numberOrNull(e.fit.own_voltage_angle_std)}};
   j["fitness"] = numberOrNull(e.fitness);
   j["samples"] = e.counters.used;
   j["skipped"] = e.counters.skipped();
@@ -151,7 +153,8 @@ void printEstimate(const Estimate& e, bool thermal_enabled) {
     char from[96] = "";
     if (e.fit.voltage_angle_from_long_window) std::snprintf(from, sizeof from, " (from the long window)");
     if (e.fit.voltage_angle_remembered)
-      std::snprintf(from, sizeof from, " (as the fitness window determined it at t = %.4g s)", e.fit.voltage_angle_remembered_t);
+      std::snprintf(from, sizeof from, " (this window's own, %.3g, combined with the fitness window's at t = %.4g s)",
+                    e.fit.own_voltage_angle, e.fit.voltage_angle_remembered_t);
     std::printf("  voltage angle (data's fit) = %.3g +- %.2g omega_e T_s beyond the declared timing%s\n", e.fit.voltage_angle,
                 e.fit.voltage_angle_std, from);
   }

@@ -1918,9 +1918,10 @@ TEST(DriveModel, BehindAnEncoderTheObserversBackEmfTurnsAtTheCountsRateOverSever
 
 TEST(DriveModel, ARememberedAngleIsTakenOnlyWhereTheWindowAgrees) {
   // At one steady operating point (industrial_pwm_steady) the window determines the angle poorly; a
-  // remembered angle with a tenth of its standard deviation is held there (and L_q's standard
-  // deviation falls), one with 0.8 of it is not, nor one ten of the window's own standard deviations
-  // away. (The long
+  // remembered angle that agrees with its own is combined with it by their standard deviations
+  // (one with a tenth of the window's standard deviation nearly replaces it, and L_q's standard
+  // deviation falls; one with 0.8 of it, half a standard deviation away, moves it by 1.5625 / 2.5625
+  // of the gap), and one ten of the window's own standard deviations away is not taken. (The long
   // window, which is preferred where it determines the angle better than the fitness window, is
   // forgotten here: the remembered angle is what serves a window whose long window does not.)
   RealDriveRun run = realDriveRun("industrial_pwm_steady.yaml", 0.5);
@@ -1930,18 +1931,23 @@ TEST(DriveModel, ARememberedAngleIsTakenOnlyWhereTheWindowAgrees) {
   const ParameterVector start = run.data.back().truth;
   const FitCheck own = checkFit(stats, c.assessment, start, false, true, 10.0, false);
   ASSERT_TRUE(own.available && own.voltage_angle_modelled);
-  ASSERT_TRUE(std::isfinite(own.own_voltage_angle_std)) << "the window should determine the angle a little";
+  const double a = own.own_voltage_angle, sigma = own.own_voltage_angle_std;
+  ASSERT_TRUE(std::isfinite(sigma)) << "the window should determine the angle a little";
   EXPECT_FALSE(own.voltage_angle_remembered);
-  RememberedAngle agreeing{own.own_voltage_angle, 0.1 * own.own_voltage_angle_std, 0.1};
+  RememberedAngle agreeing{a, 0.1 * sigma, 0.1};
   const FitCheck with = checkFit(stats, c.assessment, start, false, true, 10.0, false, &agreeing);
   EXPECT_TRUE(with.voltage_angle_remembered);
-  EXPECT_DOUBLE_EQ(with.voltage_angle, agreeing.angle);
-  EXPECT_DOUBLE_EQ(with.voltage_angle_std, agreeing.standard_deviation);
+  EXPECT_NEAR(with.voltage_angle, a, 1e-12);
+  EXPECT_NEAR(with.voltage_angle_std, sigma / std::sqrt(101.0), 1e-9 * sigma);
   EXPECT_LT(with.relative_std[kLq], 0.5 * own.relative_std[kLq]);
-  // One that agrees but carries less than twice the window's own information is not held either.
-  RememberedAngle barely_better{own.own_voltage_angle, 0.8 * own.own_voltage_angle_std, 0.1};
-  EXPECT_FALSE(checkFit(stats, c.assessment, start, false, true, 10.0, false, &barely_better).voltage_angle_remembered);
-  RememberedAngle contradicted{own.own_voltage_angle + 10.0 * own.own_voltage_angle_std, 0.1 * own.own_voltage_angle_std, 0.1};
+  RememberedAngle weaker{a + 0.5 * sigma, 0.8 * sigma, 0.1};
+  const FitCheck combined = checkFit(stats, c.assessment, start, false, true, 10.0, false, &weaker);
+  EXPECT_TRUE(combined.voltage_angle_remembered);
+  EXPECT_NEAR(combined.voltage_angle, a + 0.5 * sigma * 1.5625 / 2.5625, 1e-6 * sigma);
+  EXPECT_NEAR(combined.voltage_angle_std, sigma / std::sqrt(2.5625), 1e-6 * sigma);
+  EXPECT_LT(combined.relative_std[kLq], own.relative_std[kLq]);
+  EXPECT_GT(combined.relative_std[kLq], with.relative_std[kLq]);
+  RememberedAngle contradicted{a + 10.0 * sigma, 0.1 * sigma, 0.1};
   const FitCheck against = checkFit(stats, c.assessment, start, false, true, 10.0, false, &contradicted);
   EXPECT_FALSE(against.voltage_angle_remembered);
   EXPECT_NEAR(against.voltage_angle, own.voltage_angle, 1e-9);

@@ -158,15 +158,9 @@ struct RememberedAngle {
 };
 /// A remembered angle is taken only where it agrees with the window's own within this many
 /// combined standard deviations; between one and this, its standard deviation is scaled by the
-/// disagreement (in combined standard deviations).
+/// disagreement (in combined standard deviations). Where taken, it is combined with the window's own
+/// by their standard deviations (checkFit).
 constexpr double kRememberedAngleAgreement = 3.0;
-/// ... and only where its standard deviation is below the window's own by this factor (it carries at
-/// least twice the window's own information on the angle): holding a constant another window gave
-/// is worth the risk that the two windows' angles differ only where it tells the window much more.
-/// (Measured on the robot joint with 1.0 us of dead time over 1.3 s: the first settled window's
-/// angle, 0.533-0.541 +- 0.006 where the drive's is 0.5, held by later windows with +-0.006-0.007 of
-/// their own, left 17 of 47 values along the run more than 2 % off.)
-constexpr double kRememberedAngleGain = 1.4142135623730951;
 
 /// Exact fit of the window starting from `start` (positive inductances), and its check.
 /// estimate_inverter: fit V and its zero-crossing shape with the four (start value inverter_start).

@@ -449,18 +449,25 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
       std::vector<std::pair<int, double>> shifts;  // (entry, its long-window std)
       Eigen::VectorXd at = free_fit.beta;
       bool angle_remembered = false;
+      double held_angle_std = std::numeric_limits<double>::infinity();
       // The long window first (a fit of this data with more of it); the remembered angle stands in
       // only where the two windows cannot be fitted together (they disagree, or the long window has
-      // no blocks yet).
+      // no blocks yet). It is combined with the window's own by their standard deviations (both
+      // estimate the one constant; the parameters given the angle are the fit with it held, and
+      // they add what the combined angle's standard deviation moves them by).
       if (estimate_angle && stdOf(joint_fit, angle_index) < stdOf(free_fit, angle_index)) {
         hold[static_cast<std::size_t>(angle_index)] = true;
         at(angle_index) = joint_fit.beta(angle_index);
-        shifts.emplace_back(angle_index, stdOf(joint_fit, angle_index));
-      } else if (estimate_angle && !joint_fit.ok &&
-                 remembered_std * kRememberedAngleGain < stdOf(free_fit, angle_index)) {
+        held_angle_std = stdOf(joint_fit, angle_index);
+        shifts.emplace_back(angle_index, held_angle_std);
+      } else if (estimate_angle && !joint_fit.ok && std::isfinite(remembered_std)) {
+        const double own_std = stdOf(free_fit, angle_index);
+        const double w_remembered = 1.0 / (remembered_std * remembered_std);
+        const double w_own = std::isfinite(own_std) ? 1.0 / (own_std * own_std) : 0.0;
         hold[static_cast<std::size_t>(angle_index)] = true;
-        at(angle_index) = remembered->angle;
-        shifts.emplace_back(angle_index, remembered_std);
+        at(angle_index) = (w_remembered * remembered->angle + w_own * free_fit.beta(angle_index)) / (w_remembered + w_own);
+        held_angle_std = 1.0 / std::sqrt(w_remembered + w_own);
+        shifts.emplace_back(angle_index, held_angle_std);
         angle_remembered = true;
       }
       const int shape_end = estimate_inverter ? (with_bus ? 7 : 6) : 4;
@@ -511,7 +518,7 @@ FitCheck checkFit(const BlockStatistics& stats, const AssessmentSettings& a, con
           angle_shift = moved_angle;
           inverter_shift = moved_inverter;
           if (hold[static_cast<std::size_t>(angle_index)] && estimate_angle) {
-            angle_std = angle_remembered ? remembered_std : stdOf(joint_fit, angle_index);
+            angle_std = held_angle_std;
             out.voltage_angle_from_long_window = !angle_remembered;
             out.voltage_angle_remembered = angle_remembered;
             if (angle_remembered) out.voltage_angle_remembered_t = remembered->t;
