@@ -412,11 +412,11 @@ double OnlineIdentifier::chooseZeroCrossingCurrent(const WindowSettings& w, cons
   // resistance that changes with the current's magnitude (R_s +1 % at 6 A on the 36 mH drive with
   // 0.3 A against 0.1 A). So the width is measured: the recent samples go through the statistics
   // of each candidate, from the currents' RMS down by halves (the fitted shape mixes each width
-  // with twice it; the two widest only where a quarter of the RMS is taken), and the one whose slow window the fit leaves the smallest residual is taken,
-  // a narrower one only where its residual is lower by more than chance allows (the residual
-  // flattens out below the true width, and the shares then trade against each other; a 5 % margin
-  // was within chance: one seed of ten took a quarter of the width, and its L_d's zero-crossing
-  // term then grew to 20 %).
+  // with twice it; the two widest only where a quarter of the RMS is taken), and the one whose
+  // slow window the fit leaves the smallest residual is taken, a narrower one only where its
+  // residual is lower by more than chance allows (the residual flattens out below the true width,
+  // and the shares then trade against each other; a 5 % margin was within chance: one seed of ten
+  // took a quarter of the width, and its L_d's zero-crossing term then grew to 20 %).
   // (The error of a width that is too narrow is a few per cent of V; of one too wide, a resistance.)
   double sum2 = 0.0;
   for (const RecentSample& r : recent_) sum2 += r.sample.i_d * r.sample.i_d + r.sample.i_q * r.sample.i_q;
