@@ -37,6 +37,7 @@ json estimateJson(const Estimate& e) {
     j["status"][name] = toString(e.status[p]);
     j["reason"][name] = e.reason[p];
     j["relative_uncertainty"][name] = numberOrNull(e.relative_uncertainty[p]);
+    j["source"][name] = e.from_slow_window[p] ? "slow_window" : "fitness_window";
     j["data_optimum"][name] = e.fit.available ? numberOrNull(e.fit.optimum[p]) : json(nullptr);
   }
   if (e.fit.cross_saturation_modelled)

@@ -56,6 +56,11 @@ struct LinearBlockModel {
   /// Any model + {a}: the acting voltage turned by a omega_e T_s against the declared timing (an
   /// unrecorded angle prediction, doc/algorithm.md section 8), appended after its own parameters.
   static LinearBlockModel withVoltageAngle(const LinearBlockModel& model);
+  /// Any model + {rho, kappa}: R_s changing at rho [ohm/s] and at kappa [ohm/(A^2 s)] times the
+  /// copper loss's clock i_d^2 + i_q^2 about the slow window's newest snapshot (the entries
+  /// kIntegralIdRate, kIntegralIdHeat and their q twins; only the slow window holds them), appended
+  /// after its own parameters. R_s is then the value at that snapshot.
+  static LinearBlockModel withResistanceRate(const LinearBlockModel& model);
   /// Any model + {L_qq, L_dq} (appended after its own parameters).
   static LinearBlockModel withCrossSaturation(const LinearBlockModel& model, double i_bar);
 };

@@ -135,6 +135,15 @@ enum BlockEntryD : int {
   kIntegralOmegaIdInD,   ///< int omega_e i_d dt [A] (cross-saturation: omega_e L_dq i_d in psi_q)
   kIntegralOmegaInD,     ///< int omega_e dt [rad] (cross-saturation: psi_q(0, i_q) linear in a moving i_q)
   kIntegralAngleUqInD,   ///< int omega_e T_s u_q dt [V s]: the acting vector turned by a omega_e T_s adds -a times it
+  /// int (t - t_ref) i_d dt [A s^2]: a resistance changing at a rate rho adds rho times it (R_s's own
+  /// rate within the slow window, t_ref its newest snapshot). Only the slow window holds it, from its
+  /// snapshots' times (BlockStatistics::slowWindow); the blocks themselves carry 0 (kRateEntries).
+  kIntegralIdRate,
+  /// int (Q(t) - Q_ref) i_d dt [A^3 s^2], Q = int (i_d^2 + i_q^2) dt the copper loss's clock: a
+  /// winding heated by its copper loss changes its resistance at kappa (i_d^2 + i_q^2) besides a
+  /// rate of its own (the heat it loses), so R_s(t) = R_s + rho (t - t_ref) + kappa (Q(t) - Q_ref)
+  /// turns where the load does. As kIntegralIdRate, from the snapshots' Q.
+  kIntegralIdHeat,
   kBlockSizeD
 };
 /// Entries of the q-axis block vector.
@@ -151,8 +160,15 @@ enum BlockEntryQ : int {
   kDeltaIdInQ,           ///< i_d(t_k) - i_d(t_j) [A] (cross-saturation: L_dq di_d/dt in the q axis)
   kIntegralOmegaIqInQ,   ///< int omega_e i_q dt [A] (cross-saturation: psi_d(0, i_q) linear in a moving i_q)
   kIntegralAngleUdInQ,   ///< int omega_e T_s u_d dt [V s]: ... adds +a times it (T_s the nominal period)
+  kIntegralIqRate,       ///< int (t - t_ref) i_q dt [A s^2] (as kIntegralIdRate)
+  kIntegralIqHeat,       ///< int (Q(t) - Q_ref) i_q dt [A^3 s^2] (as kIntegralIdHeat)
   kBlockSizeQ
 };
+/// The entries every block computes: all but the slow window's rate and heat entries, which are
+/// last on both axes.
+constexpr int kRateEntries = 2;
+static_assert(kIntegralIdRate == kBlockSizeD - kRateEntries && kIntegralIqRate == kBlockSizeQ - kRateEntries,
+              "the rate entries are the blocks' last");
 using BlockD = Eigen::Matrix<double, kBlockSizeD, 1>;
 using BlockQ = Eigen::Matrix<double, kBlockSizeQ, 1>;
 using ProductD = Eigen::Matrix<double, kBlockSizeD, kBlockSizeD>;
@@ -348,8 +364,15 @@ class BlockStatistics {
   /// The long check window: differences of non-overlapping blocks (consecutive, and
   /// long_difference_spacing apart), long_time_constant.
   WindowSums longWindow() const;
-  /// The slow window: the fitness window's blocks averaged once more over slow_time_constant.
+  /// The slow window: the fitness window's blocks averaged once more over slow_time_constant, with
+  /// the rate entries (kIntegralIdRate, kIntegralIqRate) about its newest snapshot, slowWindowTime().
   WindowSums slowWindow() const;
+  /// The reference of the slow window's rate entries: the end of the newest snapshot's newest block
+  /// [s] (NaN: none).
+  double slowWindowTime() const { return slow_time_ + slow_ahead_time_; }
+  /// The copper loss's clock Q = int (i_d^2 + i_q^2) dt there, the reference of its heat entries
+  /// [A^2 s] (counted since the statistics were configured).
+  double slowWindowHeat() const { return slow_heat_ + slow_ahead_heat_; }
   double slowTimeConstant() const { return settings_.slow_time_constant; }
   /// The logged speed against the logged angle's rate over the long window, sum |omega_e| dt /
   /// sum sign(omega_e) dtheta_e (1 when the speed's unit is right); NaN without the angle or before
@@ -380,7 +403,7 @@ class BlockStatistics {
     double shape_d, shape_q;                // inverter error shape s at the sample
     double theta_e;                         // electrical angle (NaN when not logged)
     double Om_mean;                         // Om's centred mean over 2 m + 1 samples (angle_smoothing_samples)
-    double padding;                         // a whole number of 16-byte chunks (zeroFill)
+    double heat;                            // the copper loss's clock int (i_d^2 + i_q^2) dt (heat_), not rebased
     std::array<double, 3> phase;            // phase currents a, b, c (when theta_e is known)
   };
   /// `mid`: the phasor of the rotor angle at mid-period.
@@ -515,6 +538,16 @@ class BlockStatistics {
   OffsetCrossD slow_C_d_ = OffsetCrossD::Zero();
   OffsetCrossQ slow_C_q_ = OffsetCrossQ::Zero();
   double slow_weight_ = 0.0, slow_lambda_ = 1.0;
+  double slow_time_ = std::numeric_limits<double>::quiet_NaN();  // slowWindowTime()
+  // The newest snapshot's weighted mean block time and copper-loss clock, the stored rate and heat
+  // entries' reference, and how far the newest block's end lies beyond them.
+  double slow_heat_ = 0.0, slow_ahead_time_ = 0.0, slow_ahead_heat_ = 0.0;
+  double heat_ = 0.0;       // int (i_d^2 + i_q^2) dt over every sample that followed another [A^2 s]
+  // The fitness window's blocks: forgotten sums of 1, of their mid times and of their mid Q.
+  double fast_block_weight_ = 0.0, fast_time_sum_ = 0.0, fast_heat_sum_ = 0.0;
+  /// Moves the rate and heat entries' reference on by by_time [s] and by_heat [A^2 s].
+  void moveSlowReference(ProductD& d, ProductQ& q, OffsetCrossD& C_d, OffsetCrossQ& C_q, double by_time,
+                         double by_heat) const;
   ProductD long_d_ = ProductD::Zero();
   ProductQ long_q_ = ProductQ::Zero();
   double long_weight_ = 0.0, long_lambda_ = 1.0;

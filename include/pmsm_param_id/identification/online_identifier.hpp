@@ -72,6 +72,9 @@ struct Estimate {
   std::array<std::string, kParameterCount> reason{};
   std::array<bool, kParameterCount> identifiable{};  ///< status == identified
   ParameterVector relative_uncertainty{};  ///< stated uncertainty / value [-] (inf when unknown)
+  /// R_s or psi_f taken from the slow window (identified there and not by the fitness window):
+  /// parameters, status and uncertainty are then slow's, the reason names both.
+  std::array<bool, kParameterCount> from_slow_window{};
   FitCheck fit;                     ///< the data's own fit and its check
   double inverter_voltage = 0.0;    ///< estimated inverter error voltage [V] (NaN when not modelled)
   ParameterStatus inverter_status = ParameterStatus::NoData;

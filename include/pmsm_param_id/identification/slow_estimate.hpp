@@ -68,6 +68,11 @@ struct SlowFit {
   double inverter_wide_share = NAN;  ///< the part of it with twice the zero-crossing width [V]
   double inverter_relative_std = std::numeric_limits<double>::infinity();
   bool angle_held = false;
+  /// R_s's own rate is fitted (behind an inverter): R_s is the value at the newest snapshot and
+  /// needs no lag from the window's history.
+  bool rate_modelled = false;
+  double resistance_rate = NAN;      ///< [ohm/s]
+  double resistance_rate_std = NAN;  ///< [ohm/s] (inf: undetermined)
 };
 
 /// V counts towards its systematic range where a window determined it to this relative std [-].
@@ -85,8 +90,9 @@ constexpr double kInverterEdgeModelFloor = 0.005;
 /// Fits the slow window. `fast` is the fitness window's check of the same statistics (its drive
 /// terms, noise level and optimum as the start); `constants` is updated where this window
 /// determines them better, from a fit consistent with the noise. t: the stamp of the data [s].
+/// resistance_rate: behind an inverter, R_s's rate and heating are fitted with it (SlowFit::rate_modelled).
 SlowFit slowFit(const BlockStatistics& stats, const AssessmentSettings& a, const FitCheck& fast,
-                DriveConstants& constants, double t);
+                DriveConstants& constants, double t, bool resistance_rate = true);
 
 /// Status of the slow R_s and psi_f (the inductances are the fitness window's business).
 /// lag_relative: per parameter, how far the window's exponential average may trail a changing

@@ -11,10 +11,10 @@
 namespace pmsm_param_id {
 
 namespace {
-// At most 8 parameters: fixed-capacity matrices keep the solver off the heap.
-using MatN = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 8, 8>;
-using VecN = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 8, 1>;
-constexpr int kMaxParameters = 8;
+// At most 10 parameters: fixed-capacity matrices keep the solver off the heap.
+using MatN = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 10, 10>;
+using VecN = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 10, 1>;
+constexpr int kMaxParameters = 10;
 
 LinearBlockModel base(int extra) {
   LinearBlockModel m;
@@ -103,8 +103,10 @@ auto forModelSize(const LinearBlockModel& model, F&& f) {
     case 6: return f(std::integral_constant<int, 6>{});
     case 7: return f(std::integral_constant<int, 7>{});
     case 8: return f(std::integral_constant<int, 8>{});
+    case 9: return f(std::integral_constant<int, 9>{});
+    case 10: return f(std::integral_constant<int, 10>{});
   }
-  throw std::invalid_argument("a block model has 4 to 8 parameters, not " + std::to_string(model.size()));
+  throw std::invalid_argument("a block model has 4 to 10 parameters, not " + std::to_string(model.size()));
 }
 
 /// The exact fit of a model with N parameters (BlockLeastSquares::fit).
@@ -248,6 +250,20 @@ LinearBlockModel LinearBlockModel::withVoltageAngle(const LinearBlockModel& base
   const int a = addParameter(m, "voltage_angle");
   m.G_d(kIntegralAngleUqInD, a) = 1.0;
   m.G_q(kIntegralAngleUdInQ, a) = -1.0;
+  return m;
+}
+
+LinearBlockModel LinearBlockModel::withResistanceRate(const LinearBlockModel& base_model) {
+  // + {rho, kappa}: R_s(t) = R_s + rho (t - t_ref) + kappa (Q(t) - Q_ref), so int R_s(t) i dt =
+  // R_s int i + rho int (t - t_ref) i + kappa int (Q(t) - Q_ref) i.
+  LinearBlockModel m = base_model;
+  m.name = base_model.name + "+resistance_rate";
+  const int rho = addParameter(m, "resistance_rate");
+  m.G_d(kIntegralIdRate, rho) = 1.0;
+  m.G_q(kIntegralIqRate, rho) = 1.0;
+  const int kappa = addParameter(m, "resistance_heating");
+  m.G_d(kIntegralIdHeat, kappa) = 1.0;
+  m.G_q(kIntegralIqHeat, kappa) = 1.0;
   return m;
 }
 

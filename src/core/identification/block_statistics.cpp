@@ -41,6 +41,8 @@ void BlockStatistics::reset() {
   blocks_ = 0;
   blocks_since_rebase_ = 0;
   have_previous_block_ = false;
+  heat_ = 0.0;
+  fast_block_weight_ = fast_time_sum_ = fast_heat_sum_ = 0.0;
   long_d_.setZero();
   long_q_.setZero();
   long_weight_ = 0.0;
@@ -93,6 +95,8 @@ void BlockStatistics::resetSlowWindow() {
   slow_C_d_.setZero();
   slow_C_q_.setZero();
   slow_weight_ = 0.0;
+  slow_time_ = std::numeric_limits<double>::quiet_NaN();
+  slow_heat_ = slow_ahead_time_ = slow_ahead_heat_ = 0.0;
 }
 
 void BlockStatistics::configure(double nominal_period) {
@@ -543,12 +547,13 @@ inline void zeroFill(T& x) {
   zeroStores(x, std::make_index_sequence<sizeof(T) / 16>{});
 }
 // Upper triangle of S += alpha z z^T (small fixed sizes: plain loops beat the general routine).
-template <int N>
+// K: only the first K entries of z (the rest are zero: the blocks' rate entries).
+template <int N, int K = N>
 inline void rankOneUpper(Eigen::Matrix<double, N, N>& S, const Eigen::Matrix<double, N, 1>& z, double alpha) {
   // Unrolled whole (N is a small compile-time size): the triangle's loops of varying length otherwise
   // compile to a vector loop with a scalar remainder per column.
 #pragma GCC unroll 16
-  for (int j = 0; j < N; ++j) {
+  for (int j = 0; j < K; ++j) {
     const double azj = alpha * z(j);
 #pragma GCC unroll 16
     for (int i = 0; i <= j; ++i) S(i, j) += azj * z(i);
@@ -556,14 +561,14 @@ inline void rankOneUpper(Eigen::Matrix<double, N, N>& S, const Eigen::Matrix<dou
 }
 /// M += alpha a b^T, unrolled whole (Eigen's general outer product runs column by column through a
 /// call per column: the sensors' three updates cost more than the 12 x 12 sums' two).
-template <int R, int C>
+template <int R, int C, int K = R>
 inline void rankOne(Eigen::Matrix<double, R, C>& M, const Eigen::Matrix<double, R, 1>& a,
                     const Eigen::Matrix<double, C, 1>& b, double alpha) {
   const Eigen::Matrix<double, R, 1> aa = alpha * a;  // (alpha a_i) b_j, as Eigen's product rounds it
 #pragma GCC unroll 16
   for (int j = 0; j < C; ++j) {
 #pragma GCC unroll 16
-    for (int i = 0; i < R; ++i) M(i, j) += aa(i) * b(j);
+    for (int i = 0; i < K; ++i) M(i, j) += aa(i) * b(j);
   }
 }
 }  // namespace
@@ -629,6 +634,7 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
     const double h = 0.5 * dt;
     c.I_d = p.I_d + h * (p.i_d + s.i_d);
     c.I_q = p.I_q + h * (p.i_q + s.i_q);
+    heat_ += h * (p.i_d * p.i_d + p.i_q * p.i_q + s.i_d * s.i_d + s.i_q * s.i_q);
     if (std::isfinite(p.theta_e) && std::isfinite(s.theta_e)) {
       // With the logged angle, omega_e dt is the angle's increment (below half the sampling rate
       // in electrical frequency): what filters and quantises the logged speed does not enter. The
@@ -774,6 +780,7 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
     c.applied_d = c.applied_prev_d = s.u_d;
     c.applied_q = c.applied_prev_q = s.u_q;
   }
+  c.heat = heat_;
   // The rotation's centred mean (angle_smoothing_samples): the entry m samples back has its m
   // successors now; a stretch's first entries take the widest centred window they have.
   c.Om_mean = c.Om;
@@ -795,13 +802,18 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
   BlockD zd;
   BlockQ zq;
   zd << e.i_d - a.i_d, e.I_d - a.I_d, e.OmIq - a.OmIq, e.U_d - a.U_d, e.Inv_d - a.Inv_d, e.Ustep_d - a.Ustep_d,
-      e.Wide_d - a.Wide_d, e.Bus_d - a.Bus_d, e.i_q - a.i_q, e.OmId - a.OmId, e.Om_mean - a.Om_mean, e.A_d - a.A_d;
+      e.Wide_d - a.Wide_d, e.Bus_d - a.Bus_d, e.i_q - a.i_q, e.OmId - a.OmId, e.Om_mean - a.Om_mean, e.A_d - a.A_d, 0.0, 0.0;
   zq << e.i_q - a.i_q, e.I_q - a.I_q, e.OmId - a.OmId, e.U_q - a.U_q, e.Om_mean - a.Om_mean, e.Inv_q - a.Inv_q,
-      e.Ustep_q - a.Ustep_q, e.Wide_q - a.Wide_q, e.Bus_q - a.Bus_q, e.i_d - a.i_d, e.OmIq - a.OmIq, e.A_q - a.A_q;
+      e.Ustep_q - a.Ustep_q, e.Wide_q - a.Wide_q, e.Bus_q - a.Bus_q, e.i_d - a.i_d, e.OmIq - a.OmIq, e.A_q - a.A_q, 0.0, 0.0;
+  constexpr int kComputedD = kBlockSizeD - kRateEntries, kComputedQ = kBlockSizeQ - kRateEntries;
   // Forgetting: every stored sum is implicitly multiplied by lambda; new terms enter with scale_.
   scale_ /= lambda_;
-  rankOneUpper(S_d_, zd, scale_);
-  rankOneUpper(S_q_, zq, scale_);
+  // The blocks' weighted mean time and copper-loss clock (the slow window's snapshots are at them).
+  fast_block_weight_ = lambda_ * fast_block_weight_ + 1.0;
+  fast_time_sum_ = lambda_ * fast_time_sum_ + 0.5 * (a.t + e.t);
+  fast_heat_sum_ = lambda_ * fast_heat_sum_ + 0.5 * (a.heat + e.heat);
+  rankOneUpper<kBlockSizeD, kComputedD>(S_d_, zd, scale_);
+  rankOneUpper<kBlockSizeQ, kComputedQ>(S_q_, zq, scale_);
   stored_weight_ += scale_;
   OffsetBlock zn = OffsetBlock::Zero();
   if (settings_.sensor_offsets) {
@@ -818,16 +830,16 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
       zn(kIntegralOmegaQ) = e.W_Q - a.W_Q;
     }
     rankOneUpper(N_, zn, scale_);  // its upper triangle: offsetPseudoInverse reads no other
-    rankOne(C_d_, zd, zn, scale_);
-    rankOne(C_q_, zq, zn, scale_);
+    rankOne<kBlockSizeD, kOffsetBlockSize, kComputedD>(C_d_, zd, zn, scale_);
+    rankOne<kBlockSizeQ, kOffsetBlockSize, kComputedQ>(C_q_, zq, zn, scale_);
   }
   // The noise level needs the mean square of consecutive-block differences, not every one of
   // them: every fourth difference is an unbiased sample and costs a quarter.
   if (have_previous_block_ && (blocks_ & 3u) == 0) {
     const BlockD dd = zd - last_d_;
     const BlockQ dq = zq - last_q_;
-    rankOneUpper(dS_d_, dd, scale_);
-    rankOneUpper(dS_q_, dq, scale_);
+    rankOneUpper<kBlockSizeD, kComputedD>(dS_d_, dd, scale_);
+    rankOneUpper<kBlockSizeQ, kComputedQ>(dS_q_, dq, scale_);
     stored_difference_weight_ += scale_;
   }
   weight_ = stored_weight_ / scale_;
@@ -864,7 +876,25 @@ PMSM_VECTOR_CLONES bool BlockStatistics::add(const Sample& s) {
     // offset terms) averaged once more over slow_time_constant; the M blocks since the last
     // update count as M blocks. (Non-overlapping blocks alone would hold a tenth of the noise
     // averaging; each block added at every sample would cost a rank-one update per sample.)
+    // Each snapshot's blocks count as of their weighted mean time t_n and copper-loss clock Q_n:
+    // their rate entries are (t_n - t_ref) times their int i entries, t_ref the newest snapshot's
+    // t_n, their heat entries (Q_n - Q_ref) times them. Moving t_ref by D takes D times the int i
+    // entry off the rate entry (z' = T z, T = I - D e_rate e_I': every product T M T', every cross
+    // T C), and Q_ref the same; the new snapshot then enters with both entries 0. slowWindow()
+    // moves the reference on to the newest block's end.
     if (stored_weight_ > 0) {
+      const double t_n = fast_time_sum_ / fast_block_weight_, Q_n = fast_heat_sum_ / fast_block_weight_;
+      double D = std::isfinite(slow_time_) ? t_n - slow_time_ : 0.0;
+      if (!(D >= 0.0)) {  // the clock went back: the snapshots' times are unknown, the window starts again
+        resetSlowWindow();
+        D = 0.0;
+      }
+      const double DQ = std::isfinite(slow_time_) ? Q_n - slow_heat_ : 0.0;
+      moveSlowReference(slow_d_, slow_q_, slow_C_d_, slow_C_q_, D, DQ);
+      slow_time_ = t_n;
+      slow_heat_ = Q_n;
+      slow_ahead_time_ = e.t - t_n;
+      slow_ahead_heat_ = e.heat - Q_n;
       const double n = static_cast<double>(block_samples_);
       const double k = n / stored_weight_;
       slow_d_ = slow_lambda_ * slow_d_ + k * ProductD(S_d_.selfadjointView<Eigen::Upper>());
@@ -1053,8 +1083,32 @@ WindowSums BlockStatistics::longWindow() const {
   return windowOf(long_d_, long_q_, long_N_, long_C_d_, long_C_q_, long_weight_);
 }
 
+void BlockStatistics::moveSlowReference(ProductD& d, ProductQ& q, OffsetCrossD& C_d, OffsetCrossQ& C_q, double by_time,
+                                        double by_heat) const {
+  const auto shift = [&](double by, int d_entry, int q_entry) {
+    if (by == 0.0) return;
+    const auto move = [by](auto& M, int entry, int integral) {
+      M.row(entry) -= by * M.row(integral);
+      M.col(entry) -= by * M.col(integral);
+    };
+    move(d, d_entry, kIntegralId);
+    move(q, q_entry, kIntegralIq);
+    if (settings_.sensor_offsets) {
+      C_d.row(d_entry) -= by * C_d.row(kIntegralId);
+      C_q.row(q_entry) -= by * C_q.row(kIntegralIq);
+    }
+  };
+  shift(by_time, kIntegralIdRate, kIntegralIqRate);
+  shift(by_heat, kIntegralIdHeat, kIntegralIqHeat);
+}
+
 WindowSums BlockStatistics::slowWindow() const {
-  return windowOf(slow_d_, slow_q_, slow_N_, slow_C_d_, slow_C_q_, slow_weight_);
+  ProductD d = slow_d_;
+  ProductQ q = slow_q_;
+  OffsetCrossD C_d = slow_C_d_;
+  OffsetCrossQ C_q = slow_C_q_;
+  moveSlowReference(d, q, C_d, C_q, slow_ahead_time_, slow_ahead_heat_);
+  return windowOf(d, q, slow_N_, C_d, C_q, slow_weight_);
 }
 
 ProductD BlockStatistics::meanProductD() const {

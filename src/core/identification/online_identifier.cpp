@@ -384,8 +384,9 @@ OnlineIdentifier::ModelTrial OnlineIdentifier::replayModel(const WindowSettings&
     trial.add(r.sample);
   }
   const FitCheck f = checkFit(trial, config_.assessment, start, false, true, 0.0, false);
+  // (Without R_s's rate: the candidates share the winding's heating over the recent samples.)
   DriveConstants scratch;
-  const SlowFit slow = slowFit(trial, config_.assessment, f, scratch, last_t_);
+  const SlowFit slow = slowFit(trial, config_.assessment, f, scratch, last_t_, false);
   ModelTrial t;
   t.consistent = f.available && f.consistent;
   if (f.available) t.window_ratio = f.fit_ratio_d + f.fit_ratio_q;
@@ -1115,6 +1116,7 @@ Estimate OnlineIdentifier::estimate() const {
     // is followed by the fitness window within a few of its time constants, by the slow window
     // only over its own).
     ParameterVector lag = slow_lag_;
+    if (slow_fit_.rate_modelled) lag[kRs] = 0.0;  // the fit states R_s at its newest snapshot, with its rate
     if (e.fit.available && !e.fit.consistent) lag.fill(std::numeric_limits<double>::infinity());
     if (e.fit.available && e.fit.consistent && slow_fit_.available)
       for (int p = 0; p < kParameterCount; ++p) {
@@ -1154,6 +1156,23 @@ Estimate OnlineIdentifier::estimate() const {
     for (int p = 0; p < kParameterCount; ++p) e.slow.identifiable[p] = e.slow.status[p] == ParameterStatus::Identified;
     e.slow.window_time_constant = stats_.slowTimeConstant();
     e.slow.t = slow_fit_t_;
+    // R_s and psi_f are thermal quantities: where the fitness window does not identify one and the
+    // slow window does, the estimate is the slow window's (the data's exact optimum over its
+    // seconds, the same for every method), and the reason says so. Behind an inverter R_s needs
+    // current magnitudes apart, which a fitness window of 50 ms rarely holds and a slow one of
+    // seconds does (doc/algorithm.md section 9).
+    for (int p : {kRs, kPsiF}) {
+      if (e.identifiable[p] || !e.slow.identifiable[p]) continue;
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "+-%.3g %%, from the slow window (%.3g s); the fitness window's: ",
+                    100 * e.slow.relative_uncertainty[p], e.slow.window_time_constant);
+      e.reason[p] = buf + std::string(toString(e.status[p])) + (e.reason[p].empty() ? "" : ", " + e.reason[p]);
+      e.parameters[p] = e.slow.parameters[p];
+      e.relative_uncertainty[p] = e.slow.relative_uncertainty[p];
+      e.status[p] = ParameterStatus::Identified;
+      e.identifiable[p] = true;
+      e.from_slow_window[p] = true;
+    }
   }
   const ThermalSettings& th = config_.thermal;
   if (th.enabled) {
@@ -1167,15 +1186,28 @@ Estimate OnlineIdentifier::estimate() const {
     // optimum where it determines the parameter to the identification threshold.
     // Within learning_time the motor is declared at reference_temperature: nothing thermal changes
     // yet, so the slow window's lag is taken as none (its own estimates span no 1.75 tau so early).
+    // So is R_s's rate: where the slow fit carries it (behind an inverter), the early value is the
+    // slow window's fit without it (the rate's freedom would otherwise take the start-up's current
+    // magnitudes, which separate R_s from the inverter's error voltage: the first 5 s of the
+    // switching-level duty cycle then learnt no reference, and gave no winding temperature).
     SlowAssessment cold;
-    if (early) cold = assessSlow(slow_fit_, config_.assessment, ParameterVector{});
+    SlowFit cold_fit;
+    if (early) {
+      if (slow_fit_.rate_modelled) {
+        DriveConstants constants = drive_constants_;  // a scratch copy: this fit teaches the drive nothing
+        cold_fit = slowFit(stats_, config_.assessment, e.fit, constants, last_t_, false);
+      } else {
+        cold_fit = slow_fit_;
+      }
+      cold = assessSlow(cold_fit, config_.assessment, ParameterVector{});
+    }
     const auto learnable = [&](int p, double coefficient, double& value, double& uncertainty) {
       if (!early) return false;
       const ParameterStatus slow_status = cold.status[p];
       if ((slow_status == ParameterStatus::Identified || slow_status == ParameterStatus::NotExcited) &&
           e.slow.status[p] != ParameterStatus::PoorFit &&
           cold.relative_uncertainty[p] <= 0.5 * th.max_uncertainty * std::abs(coefficient)) {
-        value = slow_fit_.optimum[p];
+        value = cold_fit.optimum[p];
         uncertainty = cold.relative_uncertainty[p];
         return true;
       }
