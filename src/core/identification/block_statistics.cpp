@@ -547,7 +547,7 @@ inline void zeroFill(T& x) {
   zeroStores(x, std::make_index_sequence<sizeof(T) / 16>{});
 }
 // Upper triangle of S += alpha z z^T (small fixed sizes: plain loops beat the general routine).
-// K: only the first K entries of z (the rest are zero: the blocks' rate entries).
+// K: only the first K entries of z (the rest are zero: the blocks' rate and heat entries).
 template <int N, int K = N>
 inline void rankOneUpper(Eigen::Matrix<double, N, N>& S, const Eigen::Matrix<double, N, 1>& z, double alpha) {
   // Unrolled whole (N is a small compile-time size): the triangle's loops of varying length otherwise

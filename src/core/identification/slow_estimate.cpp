@@ -40,8 +40,8 @@ SlowFit slowFit(const BlockStatistics& stats, const AssessmentSettings& a, const
   const LinearBlockModel angled = angle ? LinearBlockModel::withVoltageAngle(base) : base;
   const int angle_index = angled.size() - 1;
   // Behind an inverter R_s separates from V only across load changes, which also turn the
-  // winding's temperature: R_s's own rate is fitted with it (the value is then the one at the
-  // window's newest snapshot).
+  // winding's temperature: R_s's own rate and heating are fitted with it (the value is then the
+  // one at the newest block).
   const bool rate = inverter && resistance_rate;
   const LinearBlockModel model = rate ? LinearBlockModel::withResistanceRate(angled) : angled;
   const int rate_index = rate ? model.size() - 2 : -1;
@@ -242,16 +242,20 @@ SlowAssessment assessSlow(const SlowFit& fit, const AssessmentSettings& a, const
                                    ": a load change (current magnitudes further apart within the slow window) separates them");
       continue;
     }
-    // Behind an inverter, a fit without R_s's rate and heating (slowFit's resistance_rate: the
-    // cold start's learning, the drive model's trials) never identifies R_s. It separates from the
-    // inverter's error voltage V only across the window's load changes, and a load change is also
-    // what turns the winding's temperature trend, so such a window reads part of R_s's turn as a
-    // change of V (measured with the rule lifted, on the switching-level duty cycle: 775 of 3 844
-    // identified slow R_s outside their stated uncertainty, worst 1.52 % off; on the same drive,
-    // timing and loads without the thermal model, none of 5 925, worst 0.41 %). Its value still
-    // gives a reference with its stated uncertainty. With the rate and heating fitted, none of the
-    // duty cycle's 7 146 (seeds 1-10) lay outside.
-    if (p == kRs && fit.inverter_modelled && !fit.rate_modelled) {
+    // Behind an inverter, a fit that holds the inverter's error voltage from another window does
+    // not identify R_s: V moves with the operating point (its ripple share, the shape near zero at
+    // light load) by more than the spread of its determinations shows, and at one current
+    // magnitude each volt of it is a resistance (telemetry_duty_cycle, six methods, seeds 1-10:
+    // with V held allowed, 14 447 of 76 671 slow R_s outside their stated uncertainty, worst
+    // 1.96 % off; without, none of 7 769). Nor does a fit without R_s's rate and heating
+    // (slowFit's resistance_rate: the cold start's learning, the drive model's trials): R_s
+    // separates from V only across the window's load changes, and a load change is also what
+    // turns the winding's temperature trend, so such a window reads part of R_s's turn as a change
+    // of V (with the rule lifted, on the switching-level duty cycle: 775 of 3 844 identified slow
+    // R_s outside their stated uncertainty, worst 1.52 % off; on the same drive, timing and loads
+    // without the thermal model, none of 5 925, worst 0.41 %). Its value still gives a reference
+    // and a temperature with its stated uncertainty.
+    if (p == kRs && fit.inverter_modelled && (!fit.rate_modelled || fit.inverter_held)) {
       st = ParameterStatus::NotExcited;
       // (Named before the lag: waiting for the window's history does not change it.)
       why = (std::isfinite(lag) ? format("+-%.3g %% ", 100 * out.relative_uncertainty[p])
@@ -260,10 +264,15 @@ SlowAssessment assessSlow(const SlowFit& fit, const AssessmentSettings& a, const
             (fit.inverter_held ? "with the inverter's error voltage as the slow window last determined it, at other current "
                                  "magnitudes; "
                                : "across the current magnitudes in the slow window; ") +
-            "not identified behind an inverter: R_s separates from its error voltage only across load changes, and a "
-            "load change also turns the winding's temperature, which the window then reads as a change of that voltage "
-            "(R_s's own rate within the window, from a thermal model of the winding, would separate them; this fit "
-            "leaves it out); the winding temperature is given from it with its uncertainty";
+            (fit.rate_modelled
+                 ? "not identified behind an inverter with that voltage held: it moves with the operating point by more "
+                   "than its spread across the windows that determined it shows, and at one current magnitude each "
+                   "volt of it is a resistance; a load change within the slow window separates them"
+                 : "not identified behind an inverter: R_s separates from its error voltage only across load changes, "
+                   "and a load change also turns the winding's temperature, which the window then reads as a change of "
+                   "that voltage (R_s's own rate within the window, from a thermal model of the winding, would separate "
+                   "them; this fit leaves it out)") +
+            "; the winding temperature is given from it with its uncertainty";
       continue;
     }
     if (!std::isfinite(lag)) {
