@@ -71,8 +71,6 @@ struct SlowFit {
   /// R_s's own rate is fitted (behind an inverter): R_s is the value at the newest snapshot and
   /// needs no lag from the window's history.
   bool rate_modelled = false;
-  double resistance_rate = NAN;      ///< [ohm/s]
-  double resistance_rate_std = NAN;  ///< [ohm/s] (inf: undetermined)
 };
 
 /// V counts towards its systematic range where a window determined it to this relative std [-].

@@ -44,7 +44,6 @@ SlowFit slowFit(const BlockStatistics& stats, const AssessmentSettings& a, const
   // one at the newest block).
   const bool rate = inverter && resistance_rate;
   const LinearBlockModel model = rate ? LinearBlockModel::withResistanceRate(angled) : angled;
-  const int rate_index = rate ? model.size() - 2 : -1;
   const int shape_end = inverter ? (with_bus ? 7 : 6) : 4;
   Eigen::VectorXd s = Eigen::VectorXd::Zero(model.size());
   for (int p = 0; p < kParameterCount; ++p) s(p) = fast.optimum[p];
@@ -151,11 +150,7 @@ SlowFit slowFit(const BlockStatistics& stats, const AssessmentSettings& a, const
   out.fit_ratio_q = f.mean_square_q / w.noise_variance_q;
   out.consistent = fits(f);
   out.inverter_modelled = inverter;
-  out.rate_modelled = rate_index >= 0;
-  if (out.rate_modelled) {
-    out.resistance_rate = f.beta(rate_index);
-    out.resistance_rate_std = stdOf(f, rate_index);
-  }
+  out.rate_modelled = rate;
   if (inverter) {
     out.inverter_voltage = f.beta(4);
     out.inverter_wide_share = f.beta(5);
